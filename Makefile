@@ -1,0 +1,46 @@
+# Two commands for a fresh Debian 12 machine (root):
+#   make run    install everything, then build the main target (results/slide/metrics.csv)
+#   make test   install everything, then run the test suite
+# Both are idempotent: the install step is skipped when nothing it depends on changed.
+
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.graphdem-installed
+APT_STAMP := $(VENV)/.graphdem-apt
+TARGET ?= results/slide/metrics.csv
+CORES ?= 2
+APT_PACKAGES := lammps yade python3-venv
+
+.PHONY: install run test lint clean-results
+
+install: $(STAMP)
+
+$(APT_STAMP):
+	@if command -v lmp >/dev/null && command -v yade >/dev/null; then \
+	  echo "[install] lammps and yade already present"; \
+	else \
+	  echo "[install] apt-get install $(APT_PACKAGES)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $(APT_PACKAGES); \
+	fi
+	@mkdir -p $(VENV) && touch $@
+
+$(STAMP): pyproject.toml $(APT_STAMP)
+	@test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e '.[dev]'
+	@touch $@
+
+run: install
+	$(VENV)/bin/snakemake -c$(CORES) $(TARGET)
+
+test: install
+	$(VENV)/bin/ruff check generators surrogate tests
+	$(VENV)/bin/python -m pytest -q
+
+lint: install
+	$(VENV)/bin/ruff check generators surrogate tests
+
+clean-results:
+	rm -rf results/*/ .snakemake

@@ -1,0 +1,231 @@
+"""One simulation as an H5MD 1.1 file (see docs/data.md), validated on write and on read.
+
+Layout::
+
+    /h5md                          version [1, 1]; author/name; creator/name, creator/version
+    /particles/all/box             dimension, boundary; edges [D]
+    /particles/all/position/{value [T,N,D] f4, step [T] i8, time [T] f8}
+    /particles/all/{species i4, radius f4, mass f4, kinematic bool}   [N]
+    /particles/all/properties      [N, F] f4, attribute names (optional)
+    /parameters                    attributes: every scene/DEM parameter and the provenance
+    /observables/<name>/{value, step, time}                           (optional)
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from generators.atomic import atomic_path
+
+H5MD_VERSION = (1, 1)
+CREATOR = "graphdem"
+CREATOR_VERSION = "0.1.0"
+
+
+class H5MDError(ValueError):
+    """An H5MD file (or a trajectory about to be written) is malformed; the message names it."""
+
+
+@dataclass
+class Trajectory:
+    """Positions of N particles in D dimensions over T frames, plus per-particle data."""
+
+    position: np.ndarray            # [T, N, D]
+    time: np.ndarray                # [T] s
+    step: np.ndarray                # [T] engine iteration
+    species: np.ndarray             # [N] int
+    radius: np.ndarray              # [N] m
+    mass: np.ndarray                # [N] kg
+    kinematic: np.ndarray           # [N] bool, True: position prescribed, never predicted
+    box_lower: np.ndarray           # [D] m
+    box_upper: np.ndarray           # [D] m
+    boundary: tuple[str, ...] = ()  # per axis "none" | "periodic"
+    properties: np.ndarray | None = None      # [N, F]
+    property_names: tuple[str, ...] = ()
+    parameters: dict = field(default_factory=dict)
+    observables: dict[str, np.ndarray] = field(default_factory=dict)   # name -> [T]
+
+    @property
+    def dim(self) -> int:
+        return int(self.position.shape[-1])
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.position.shape[0])
+
+    @property
+    def n_particles(self) -> int:
+        return int(self.position.shape[1])
+
+    def validate(self, where: str = "trajectory") -> Trajectory:
+        """Check shapes, finiteness, increasing times and the kinematic mask; raise H5MDError."""
+        pos = np.asarray(self.position)
+        if pos.ndim != 3 or pos.shape[2] not in (2, 3):
+            raise H5MDError(f"{where}: position must be [T, N, D] with D in (2, 3), got shape {pos.shape}")
+        t, n, d = pos.shape
+        if t < 1 or n < 1:
+            raise H5MDError(f"{where}: position has no frames or no particles (shape {pos.shape})")
+        for name, arr, shape in (
+            ("time", self.time, (t,)), ("step", self.step, (t,)),
+            ("species", self.species, (n,)), ("radius", self.radius, (n,)),
+            ("mass", self.mass, (n,)), ("kinematic", self.kinematic, (n,)),
+            ("box_lower", self.box_lower, (d,)), ("box_upper", self.box_upper, (d,)),
+        ):
+            if arr is None:
+                raise H5MDError(f"{where}: {name} is missing")
+            if np.shape(arr) != shape:
+                raise H5MDError(f"{where}: {name} has shape {np.shape(arr)}, expected {shape}")
+        bad = ~np.isfinite(pos)
+        if bad.any():
+            frame, particle, _ = np.argwhere(bad)[0]
+            raise H5MDError(f"{where}: non-finite position at frame {frame}, particle {particle}")
+        for name in ("time", "radius", "mass"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise H5MDError(f"{where}: non-finite values in {name}")
+        if t > 1 and not np.all(np.diff(np.asarray(self.time)) > 0):
+            raise H5MDError(f"{where}: frame times are not strictly increasing")
+        if np.asarray(self.kinematic).dtype != bool:
+            raise H5MDError(f"{where}: kinematic mask must be boolean, got {np.asarray(self.kinematic).dtype}")
+        if np.any(np.asarray(self.radius) <= 0) or np.any(np.asarray(self.mass) <= 0):
+            raise H5MDError(f"{where}: radius and mass must be positive")
+        if not np.all(np.asarray(self.box_upper) > np.asarray(self.box_lower)):
+            raise H5MDError(f"{where}: box upper corner must exceed lower corner")
+        if self.boundary and len(self.boundary) != d:
+            raise H5MDError(f"{where}: boundary has {len(self.boundary)} entries for {d} axes")
+        if self.properties is not None:
+            props = np.asarray(self.properties)
+            if props.ndim != 2 or props.shape[0] != n or props.shape[1] != len(self.property_names):
+                raise H5MDError(f"{where}: properties must be [N, F] with F = len(property_names)")
+            if not np.all(np.isfinite(props)):
+                raise H5MDError(f"{where}: non-finite per-particle properties")
+        for name, values in self.observables.items():
+            if np.shape(values) != (t,):
+                raise H5MDError(f"{where}: observable {name!r} must have one value per frame")
+        return self
+
+
+def _attr_value(value):
+    if isinstance(value, (bool, int, float, str, np.integer, np.floating)):
+        return value
+    if value is None:
+        return "null"
+    return json.dumps(value)
+
+
+def _from_attr(value):
+    if isinstance(value, bytes):
+        value = value.decode()
+    if isinstance(value, str) and (value[:1] in "[{" or value == "null"):
+        try:
+            return json.loads(value)
+        except json.JSONDecodeError:
+            return value
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def write(path: str | Path, traj: Trajectory, author: str = "graphdem") -> Path:
+    """Validate ``traj`` and write it atomically to ``path`` as H5MD."""
+    path = Path(path)
+    traj.validate(str(path))
+    t, n, d = traj.position.shape
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w") as f:
+            h5md = f.create_group("h5md")
+            h5md.attrs["version"] = np.array(H5MD_VERSION, dtype=np.int32)
+            f.create_group("h5md/author").attrs["name"] = author
+            creator = f.create_group("h5md/creator")
+            creator.attrs["name"] = CREATOR
+            creator.attrs["version"] = CREATOR_VERSION
+            part = f.create_group("particles/all")
+            box = part.create_group("box")
+            box.attrs["dimension"] = np.int32(d)
+            box.attrs["boundary"] = np.array(traj.boundary or ("none",) * d, dtype="S8")
+            box.create_dataset("edges", data=np.asarray(traj.box_upper, float) - np.asarray(traj.box_lower, float))
+            box.create_dataset("lower", data=np.asarray(traj.box_lower, float))
+            pos = part.create_group("position")
+            pos.create_dataset("value", data=np.asarray(traj.position, np.float32),
+                               chunks=(1, n, d), compression="gzip", compression_opts=4, shuffle=True)
+            pos.create_dataset("step", data=np.asarray(traj.step, np.int64))
+            pos.create_dataset("time", data=np.asarray(traj.time, np.float64))
+            pos["time"].attrs["unit"] = "s"
+            pos["value"].attrs["unit"] = "m"
+            part.create_dataset("species", data=np.asarray(traj.species, np.int32))
+            part.create_dataset("radius", data=np.asarray(traj.radius, np.float32))
+            part.create_dataset("mass", data=np.asarray(traj.mass, np.float32))
+            part.create_dataset("kinematic", data=np.asarray(traj.kinematic, bool))
+            if traj.properties is not None:
+                props = part.create_dataset("properties", data=np.asarray(traj.properties, np.float32))
+                props.attrs["names"] = np.array(traj.property_names, dtype="S64")
+            params = f.create_group("parameters")
+            for key, value in traj.parameters.items():
+                params.attrs[key] = _attr_value(value)
+            for name, values in traj.observables.items():
+                obs = f.create_group(f"observables/{name}")
+                obs.create_dataset("value", data=np.asarray(values, np.float64))
+                obs.create_dataset("step", data=np.asarray(traj.step, np.int64))
+                obs.create_dataset("time", data=np.asarray(traj.time, np.float64))
+    return path
+
+
+def _need(f: h5py.File, key: str, path: Path):
+    if key not in f:
+        raise H5MDError(f"{path}: not a graphdem H5MD file: missing {key}")
+    return f[key]
+
+
+def read(path: str | Path, frames: slice | None = None) -> Trajectory:
+    """Read and validate an H5MD file; raise H5MDError naming the file and the problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise H5MDError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise H5MDError(f"{path}: not a readable HDF5 file (corrupt or truncated?): {exc}") from exc
+    try:
+        with f:
+            version = tuple(int(v) for v in _need(f, "h5md", path).attrs.get("version", ()))
+            if version[:1] != (1,):
+                raise H5MDError(f"{path}: unsupported H5MD version {version}, expected 1.x")
+            sel = frames if frames is not None else slice(None)
+            box = _need(f, "particles/all/box", path)
+            edges = np.asarray(_need(f, "particles/all/box/edges", path))
+            lower = np.asarray(box["lower"]) if "lower" in box else np.zeros_like(edges)
+            part = f["particles/all"]
+            props = names = None
+            if "properties" in part:
+                props = np.asarray(part["properties"])
+                names = tuple(n.decode() if isinstance(n, bytes) else str(n)
+                              for n in part["properties"].attrs.get("names", ()))
+            observables = {}
+            if "observables" in f:
+                for name, grp in f["observables"].items():
+                    observables[name] = np.asarray(grp["value"])[sel]
+            traj = Trajectory(
+                position=np.asarray(_need(f, "particles/all/position/value", path)[sel]),
+                time=np.asarray(_need(f, "particles/all/position/time", path)[sel]),
+                step=np.asarray(_need(f, "particles/all/position/step", path)[sel]),
+                species=np.asarray(_need(f, "particles/all/species", path)),
+                radius=np.asarray(_need(f, "particles/all/radius", path)),
+                mass=np.asarray(_need(f, "particles/all/mass", path)),
+                kinematic=np.asarray(_need(f, "particles/all/kinematic", path)),
+                box_lower=lower, box_upper=lower + edges,
+                boundary=tuple(b.decode() if isinstance(b, bytes) else str(b)
+                               for b in box.attrs.get("boundary", ())),
+                properties=props, property_names=names or (),
+                parameters={k: _from_attr(v) for k, v in f["parameters"].attrs.items()}
+                if "parameters" in f else {},
+                observables=observables,
+            )
+    except H5MDError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise H5MDError(f"{path}: unreadable H5MD content (corrupt?): {exc}") from exc
+    return traj.validate(str(path))

@@ -1,0 +1,1 @@
+"""LAMMPS driver: input templates run with `-var` parameters, dump and log parsing."""

@@ -1,0 +1,64 @@
+"""Run the LAMMPS executable on an input template with `-var` parameters."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from generators.lammps import io
+
+EXECUTABLE_ENV = "GRAPHDEM_LMP"
+
+
+class LammpsError(RuntimeError):
+    """LAMMPS exited with an error; ``step`` is the last thermo step it printed."""
+
+    def __init__(self, message: str, step: int):
+        self.step = step
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class Run:
+    command: str
+    version: str
+    wall_time: float
+
+
+def executable() -> str:
+    exe = os.environ.get(EXECUTABLE_ENV, "lmp")
+    path = shutil.which(exe)
+    if path is None:
+        raise FileNotFoundError(
+            f"LAMMPS executable {exe!r} not found: install Debian's `lammps` package (make install) "
+            f"or set {EXECUTABLE_ENV} to its path")
+    return path
+
+
+def template(name: str) -> str:
+    return resources.files("generators.lammps").joinpath("templates", name).read_text()
+
+
+def run(template_name: str, variables: dict[str, object], workdir: Path,
+        log_name: str = "log.lammps") -> Run:
+    """Copy the template into ``workdir`` as in.lammps and run it there, single-threaded."""
+    workdir = Path(workdir)
+    (workdir / "in.lammps").write_text(template(template_name))
+    cmd = [executable(), "-in", "in.lammps", "-log", log_name, "-screen", "none", "-nocite"]
+    for key, value in variables.items():
+        cmd += ["-var", key, f"{value:.12g}" if isinstance(value, float) else str(value)]
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    start = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    log = workdir / log_name
+    if proc.returncode != 0:
+        message = io.error_message(log, proc.stderr + proc.stdout) or proc.stderr[-500:]
+        raise LammpsError(f"LAMMPS failed ({message})", io.last_step(log))
+    return Run(command=shlex.join(cmd), version=io.version(log), wall_time=wall)

@@ -1,0 +1,49 @@
+"""Pictures of 2D particle configurations (discs drawn to scale)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import EllipseCollection  # noqa: E402
+
+from generators.atomic import atomic_path  # noqa: E402
+
+SPECIES_COLOURS = {0: "#555555", 1: "#b5895a", 2: "#d43d2a", 3: "#3a6fb0"}
+
+
+def draw_discs(ax, xy: np.ndarray, radius: np.ndarray, species: np.ndarray, alpha: float = 1.0) -> None:
+    colours = [SPECIES_COLOURS.get(int(s), "#888888") for s in species]
+    d = 2 * np.asarray(radius)
+    ax.add_collection(EllipseCollection(d, d, np.zeros_like(d), units="xy", offsets=xy,
+                                        offset_transform=ax.transData, facecolors=colours,
+                                        edgecolors="none", alpha=alpha))
+
+
+def first_last(path: str | Path, position: np.ndarray, radius: np.ndarray, species: np.ndarray,
+               time: np.ndarray, lower: np.ndarray, upper: np.ndarray, title: str,
+               labels: dict[int, str] | None = None) -> Path:
+    """Side-by-side picture of a 2D trajectory's first and last frame."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True, constrained_layout=True)
+    for ax, frame in zip(axes, (0, len(position) - 1), strict=True):
+        draw_discs(ax, position[frame], radius, species)
+        ax.set_xlim(lower[0], upper[0])
+        ax.set_ylim(lower[1], upper[1])
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_title(f"frame {frame}, t = {time[frame]:.2f} s")
+    axes[0].set_ylabel("y (m)")
+    if labels:
+        handles = [plt.Line2D([], [], marker="o", ls="", color=SPECIES_COLOURS.get(k, "#888"), label=v)
+                   for k, v in labels.items()]
+        axes[1].legend(handles=handles, loc="upper right")
+    fig.suptitle(title)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")
+    plt.close(fig)
+    return path

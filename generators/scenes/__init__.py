@@ -1,0 +1,1 @@
+"""Engine-agnostic scene definitions."""

@@ -1,0 +1,1 @@
+"""Graph-DEM surrogate: datasets, graph building, model, training, rollout and metrics."""

@@ -1,0 +1,101 @@
+"""A dataset of H5MD simulations: the split table and normalisation statistics.
+
+Velocities and accelerations are finite differences of positions per frame (article eq. 1):
+``v_t = p_t - p_{t-1}``, ``a_t = v_t - v_{t-1}``, in metres per frame (squared). Their mean and
+standard deviation per axis over the moving (non-kinematic) particles of the train split only
+are what the model is normalised with.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from generators import h5md
+from generators.atomic import atomic_path
+
+
+class _Moments:
+    """Streaming per-axis mean and variance (Chan et al. parallel update)."""
+
+    def __init__(self, dim: int):
+        self.n = 0
+        self.mean = np.zeros(dim)
+        self.m2 = np.zeros(dim)
+
+    def add(self, values: np.ndarray) -> None:
+        values = values.reshape(-1, self.mean.size).astype(np.float64)
+        if len(values) == 0:
+            return
+        n_b, mean_b = len(values), values.mean(axis=0)
+        m2_b = ((values - mean_b) ** 2).sum(axis=0)
+        delta = mean_b - self.mean
+        total = self.n + n_b
+        self.mean = self.mean + delta * n_b / total
+        self.m2 = self.m2 + m2_b + delta**2 * self.n * n_b / total
+        self.n = total
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(self.m2 / max(self.n, 1))
+
+
+def split_table(sweep: pd.DataFrame, sims_dir: Path) -> pd.DataFrame:
+    return pd.DataFrame({"id": sweep["id"], "split": sweep["split"],
+                         "path": [str(Path(sims_dir) / f"{i}.h5") for i in sweep["id"]]})
+
+
+def statistics(paths: list[Path], connectivity_radius: float) -> dict:
+    """Normalisation statistics of the train sims ``paths`` plus dataset metadata."""
+    if not paths:
+        raise ValueError("the train split is empty: cannot compute normalisation statistics")
+    vel = acc = None
+    meta = {}
+    species = set()
+    kinematic_species = set()
+    for path in tqdm(paths, desc="dataset statistics", unit="sim"):
+        traj = h5md.read(path)
+        if vel is None:
+            vel, acc = _Moments(traj.dim), _Moments(traj.dim)
+            meta = {"dim": traj.dim, "bounds": np.stack([traj.box_lower, traj.box_upper], 1).tolist(),
+                    "frame_interval": float(np.median(np.diff(traj.time))),
+                    "n_frames": traj.n_frames, "property_names": list(traj.property_names)}
+        elif traj.dim != meta["dim"]:
+            raise ValueError(f"{path}: dimension {traj.dim} differs from the dataset's {meta['dim']}")
+        moving = ~traj.kinematic
+        p = np.asarray(traj.position, np.float64)[:, moving]
+        v = np.diff(p, axis=0)
+        vel.add(v)
+        acc.add(np.diff(v, axis=0))
+        species.update(np.unique(traj.species).tolist())
+        kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
+    floor = 1e-12
+    return {
+        **meta,
+        "velocity_mean": vel.mean.tolist(), "velocity_std": np.maximum(vel.std, floor).tolist(),
+        "acceleration_mean": acc.mean.tolist(), "acceleration_std": np.maximum(acc.std, floor).tolist(),
+        "velocity_unit": "m/frame", "acceleration_unit": "m/frame^2",
+        "connectivity_radius": float(connectivity_radius),
+        "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
+        "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
+    }
+
+
+def build(sweep_csv: Path, sims_dir: Path, out_dir: Path, connectivity_radius: float) -> dict:
+    """Write splits.csv and stats.json (train split only) into ``out_dir``."""
+    sweep = pd.read_csv(sweep_csv)
+    splits = split_table(sweep, sims_dir)
+    train = [Path(p) for p in splits.loc[splits["split"] == "train", "path"]]
+    stats = statistics(train, connectivity_radius)
+    stats["splits"] = splits["split"].value_counts().to_dict()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out_dir / "splits.csv") as tmp:
+        splits.to_csv(tmp, index=False)
+    with atomic_path(out_dir / "stats.json") as tmp:
+        tmp.write_text(json.dumps(stats, indent=2))
+    return stats

@@ -1,0 +1,67 @@
+# Helpers shared by every rule: the resolved config, the sweep tables, per-job parameters.
+import json
+import sys
+
+from generators import config as gconfig
+from generators import sweep as gsweep
+from generators.scenes import slide as slide_scene
+
+try:
+    CFG = gconfig.resolve(config)
+except gconfig.ConfigError as exc:
+    sys.exit(f"graphdem: {exc}")
+
+SCENES = ["slide"]
+SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
+
+
+wildcard_constraints:
+    scene="|".join(SCENES),
+    sim=r"[a-z]+_\d+",
+    key=r"p\d+-[0-9a-f]+",
+
+
+def _json(value) -> str:
+    return json.dumps(value, sort_keys=True)
+
+
+def scene_config_json(wildcards) -> str:
+    return _json(CFG[wildcards.scene])
+
+
+def sim_ids(scene: str) -> list[str]:
+    return list(SWEEPS[scene]["id"])
+
+
+def sim_row(wildcards) -> dict:
+    table = SWEEPS[wildcards.scene]
+    rows = table[table["id"] == wildcards.sim]
+    if rows.empty:
+        raise ValueError(f"{wildcards.sim} is not in the {wildcards.scene} sweep "
+                         f"({len(table)} sims: {table['id'].iloc[0]}..{table['id'].iloc[-1]})")
+    return rows.iloc[0].to_dict()
+
+
+def sim_row_json(wildcards) -> str:
+    return _json(sim_row(wildcards))
+
+
+def packing_of_sim(wildcards) -> str:
+    return f"results/{wildcards.scene}/packings/{sim_row(wildcards)['packing']}"
+
+
+def packing_params_json(wildcards) -> str:
+    cfg = CFG[wildcards.scene]
+    for index in range(cfg["n_packings"]):
+        params = slide_scene.packing_params(cfg, index)
+        if slide_scene.packing_key(params) == wildcards.key:
+            return _json(params)
+    raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
+
+
+def all_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in sim_ids(wildcards.scene)]
+
+
+def connectivity_radius(wildcards) -> float:
+    return CFG[wildcards.scene]["connectivity_radius"]

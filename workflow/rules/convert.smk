@@ -1,0 +1,12 @@
+# Stage convert: raw engine output -> one validated H5MD file.
+rule convert:
+    input:
+        "results/{scene}/raw/{sim}",
+    output:
+        "results/{scene}/sims/{sim}.h5",
+    log:
+        "results/{scene}/logs/convert/{sim}.log",
+    benchmark:
+        "results/{scene}/benchmarks/convert/{sim}.tsv"
+    shell:
+        "graphdem convert --scene {wildcards.scene} --raw {input} --out {output} > {log} 2>&1"

@@ -1,0 +1,19 @@
+# Stage dataset: split table and train-split normalisation statistics, plus a picture of one sim.
+rule dataset:
+    input:
+        sweep="results/{scene}/sweep.csv",
+        sims=all_sims,
+    output:
+        splits="results/{scene}/dataset/splits.csv",
+        stats="results/{scene}/dataset/stats.json",
+        plot="results/{scene}/plots/dataset_sample.png",
+    params:
+        radius=connectivity_radius,
+    log:
+        "results/{scene}/logs/dataset.log",
+    benchmark:
+        "results/{scene}/benchmarks/dataset.tsv"
+    shell:
+        "graphdem dataset --scene {wildcards.scene} --sweep {input.sweep} "
+        "--sims results/{wildcards.scene}/sims --out-dir results/{wildcards.scene}/dataset "
+        "--connectivity-radius {params.radius} --plot {output.plot} > {log} 2>&1"

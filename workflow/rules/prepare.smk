@@ -1,0 +1,12 @@
+# Stage prepare: settle a packing once; every sim whose packing parameters match shares it.
+rule prepare:
+    output:
+        directory("results/{scene}/packings/{key}"),
+    params:
+        packing=packing_params_json,
+    log:
+        "results/{scene}/logs/prepare/{key}.log",
+    benchmark:
+        "results/{scene}/benchmarks/prepare/{key}.tsv"
+    shell:
+        "graphdem prepare --scene {wildcards.scene} --params {params.packing:q} --out {output} > {log} 2>&1"

@@ -1,0 +1,12 @@
+# Stage sweep: one row per simulation with every concrete DEM parameter and its seed.
+rule sweep:
+    output:
+        "results/{scene}/sweep.csv",
+    params:
+        cfg=scene_config_json,
+    log:
+        "results/{scene}/logs/sweep.log",
+    benchmark:
+        "results/{scene}/benchmarks/sweep.tsv"
+    shell:
+        "graphdem sweep --scene {wildcards.scene} --config-json {params.cfg:q} --out {output} > {log} 2>&1"
