@@ -6,12 +6,14 @@
 #
 # The configuration is validated against workflow/schemas/config.schema.yaml before anything runs.
 
+import os
+
 from snakemake.utils import min_version
 
 min_version("9.0")
 
 
-configfile: "workflow/config/default.yaml"
+configfile: os.path.join(workflow.basedir, "workflow", "config", "default.yaml")
 
 
 include: "workflow/rules/common.smk"

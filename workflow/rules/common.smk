@@ -1,10 +1,14 @@
 # Helpers shared by every rule: the resolved config, the sweep tables, per-job parameters.
 import json
+import os
 import sys
 
 from generators import config as gconfig
 from generators import sweep as gsweep
 from generators.scenes import slide as slide_scene
+
+# Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
+os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
 
 try:
     CFG = gconfig.resolve(config)
@@ -43,7 +47,10 @@ def sim_row(wildcards) -> dict:
 
 
 def sim_row_json(wildcards) -> str:
-    return _json(sim_row(wildcards))
+    """The sim's physics: its sweep row without the split (a new split must not rerun a sim)."""
+    row = sim_row(wildcards)
+    row.pop("split")
+    return _json(row)
 
 
 def packing_of_sim(wildcards) -> str:

@@ -1,0 +1,56 @@
+import pytest
+
+from generators import config
+
+
+def test_default_config_is_valid_and_scales_fill_sizes():
+    assert config.load()["slide"]["n_sims"] == 60
+    assert config.load({"scale": "ci"})["slide"]["n_sims"] == 4
+    assert config.load({"scale": "paper"})["slide"]["n_sims"] == 1000
+
+
+def test_user_override_beats_scale_preset():
+    cfg = config.load({"scale": "paper", "slide": {"n_sims": 7}})
+    assert cfg["slide"]["n_sims"] == 7
+    assert cfg["slide"]["radius"] == [0.42, 0.62]   # the rest of the preset still applies
+
+
+def test_unknown_key_names_key_and_allowed_keys():
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"slide": {"youngs": 1e9}})
+    msg = str(err.value)
+    assert "slide.youngs" in msg
+    assert "allowed keys under slide" in msg and "young" in msg
+
+
+def test_unknown_top_level_key():
+    with pytest.raises(config.ConfigError, match="'slidee'.*allowed keys: .*slide"):
+        config.load({"slidee": {}})
+
+
+def test_wrong_type_names_key_and_type():
+    with pytest.raises(config.ConfigError, match=r"slide\.frames.*'type': 'integer'"):
+        config.load({"slide": {"frames": "many"}})
+
+
+def test_out_of_range_names_key_and_bounds():
+    with pytest.raises(config.ConfigError, match=r"slide\.restitution.*maximum': 1"):
+        config.load({"slide": {"restitution": 1.5}})
+
+
+def test_unknown_scale_lists_allowed_scales():
+    with pytest.raises(config.ConfigError, match=r"'scale' = 'huge'.*\['ci', 'default', 'paper'\]"):
+        config.load({"scale": "huge"})
+
+
+def test_inverted_ranges_are_refused():
+    with pytest.raises(config.ConfigError, match=r"slide\.sweep\.weak_dip"):
+        config.load({"slide": {"sweep": {"weak_dip": [20.0, 10.0]}}})
+    with pytest.raises(config.ConfigError, match=r"slide\.split.*sum to 1"):
+        config.load({"slide": {"split": [0.5, 0.2, 0.1]}})
+
+
+def test_yaml11_exponent_strings_become_numbers():
+    # PyYAML (and so `snakemake --config slide='{young: 5.0e9}'`) reads 5.0e9 as a string.
+    assert config.load({"slide": {"young": "5.0e9"}})["slide"]["young"] == 5.0e9
+    assert config.load({"slide": {"frames": "12"}})["slide"]["frames"] == 12

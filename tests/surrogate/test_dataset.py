@@ -1,0 +1,50 @@
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from generators import h5md
+from surrogate import dataset
+
+
+def constant_velocity_sim(path, velocity, accel=(0.0, 0.0), frames=6):
+    """Two moving discs and one kinematic disc; moving ones follow p = p0 + v t + a t^2 / 2."""
+    t = np.arange(frames)[:, None, None]
+    p0 = np.array([[1.0, 1.0], [5.0, 5.0], [9.0, 9.0]])
+    pos = p0[None] + np.asarray(velocity) * t + 0.5 * np.asarray(accel) * t**2
+    pos[:, 2] = p0[2]                      # kinematic particle never moves
+    h5md.write(path, h5md.Trajectory(
+        position=pos, time=np.arange(frames) * 0.5, step=np.arange(frames), species=np.array([1, 1, 0]),
+        radius=np.full(3, 0.4), mass=np.ones(3), kinematic=np.array([False, False, True]),
+        box_lower=np.zeros(2), box_upper=np.full(2, 100.0)))
+
+
+def test_stats_come_from_train_split_only(tmp_path):
+    sims = tmp_path / "sims"
+    constant_velocity_sim(sims / "a.h5", (0.1, -0.2), accel=(0.0, -0.02))
+    constant_velocity_sim(sims / "b.h5", (0.3, -0.2), accel=(0.0, -0.02))
+    constant_velocity_sim(sims / "c.h5", (50.0, 50.0))          # valid: must not leak into stats
+    pd.DataFrame({"id": ["a", "b", "c"], "split": ["train", "train", "valid"]}).to_csv(
+        tmp_path / "sweep.csv", index=False)
+    stats = dataset.build(tmp_path / "sweep.csv", sims, tmp_path / "out", connectivity_radius=2.5)
+    assert stats["velocity_mean"][0] == pytest.approx(0.2)
+    assert stats["velocity_std"][0] == pytest.approx(0.1)
+    assert stats["acceleration_mean"] == pytest.approx([0.0, -0.02], abs=1e-6)
+    assert stats["acceleration_std"][1] == pytest.approx(0.0, abs=1e-5)
+    # y velocity: -0.2 + a t at frames 1..5 (differences), mean -0.2 - 0.02 * 2.5
+    assert stats["velocity_mean"][1] == pytest.approx(-0.25, abs=1e-6)
+    assert stats["dim"] == 2 and stats["n_types"] == 2 and stats["kinematic_species"] == [0]
+    assert stats["frame_interval"] == pytest.approx(0.5)
+    assert stats["connectivity_radius"] == 2.5
+    written = json.loads((tmp_path / "out" / "stats.json").read_text())
+    assert written["velocity_mean"] == stats["velocity_mean"]
+    splits = pd.read_csv(tmp_path / "out" / "splits.csv")
+    assert list(splits["split"]) == ["train", "train", "valid"]
+
+
+def test_empty_train_split_is_an_error(tmp_path):
+    constant_velocity_sim(tmp_path / "a.h5", (0.1, 0.0))
+    pd.DataFrame({"id": ["a"], "split": ["valid"]}).to_csv(tmp_path / "sweep.csv", index=False)
+    with pytest.raises(ValueError, match="train split is empty"):
+        dataset.build(tmp_path / "sweep.csv", tmp_path, tmp_path / "out", 1.0)

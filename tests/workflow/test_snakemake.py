@@ -1,0 +1,87 @@
+"""The Snakemake workflow on the ci scale: a real run, config errors, and what a change reruns."""
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from generators import h5md
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+TARGET = "results/slide/dataset/stats.json"
+SMALL = "slide={n_sims: 3, frames: 8, record_start: 0.5, settle_time: 4.0}"
+
+pytestmark = pytest.mark.engine
+
+
+def snakemake(workdir, *args, config=(SMALL,)):
+    cmd = [SNAKEMAKE, *args, "-s", str(ROOT / "Snakefile"), "-d", str(workdir), "--config", "scale=ci", *config]
+    return subprocess.run(cmd, capture_output=True, text=True)
+
+
+def planned(proc) -> dict[str, int]:
+    """Job counts per rule from a dry run's 'Job stats' table."""
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text = proc.stdout + proc.stderr
+    if "Nothing to be done" in text:
+        return {}
+    table = text.split("Job stats:")[1].split("total")[0]
+    return {m[1]: int(m[2]) for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", table, re.M) if m[1] != "job"}
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    wd = tmp_path_factory.mktemp("wf")
+    proc = snakemake(wd, TARGET, "-c2")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return wd
+
+
+def test_dataset_stage_outputs(workdir):
+    res = workdir / "results" / "slide"
+    stats = json.loads((res / "dataset" / "stats.json").read_text())
+    assert stats["dim"] == 2 and stats["n_types"] == 3 and stats["kinematic_species"] == [0]
+    assert stats["connectivity_radius"] == 14.0
+    assert (res / "plots" / "dataset_sample.png").stat().st_size > 10_000
+    for sim in ("slide_0000", "slide_0001", "slide_0002"):
+        traj = h5md.read(res / "sims" / f"{sim}.h5")
+        assert traj.n_frames == 8
+        assert (res / "logs" / "simulate" / f"{sim}.log").is_file()
+        assert (res / "benchmarks" / "simulate" / f"{sim}.tsv").is_file()
+        assert (res / "raw" / sim / "in.lammps").is_file() and (res / "raw" / sim / "log.lammps").is_file()
+    assert len(list((res / "packings").iterdir())) == 1        # one packing shared by all sims
+
+
+def test_unchanged_rerun_does_nothing(workdir):
+    assert planned(snakemake(workdir, TARGET, "-n")) == {}
+
+
+def test_changed_weak_friction_reruns_sims_but_not_the_packing(workdir):
+    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", weak_friction: 0.1}",)))
+    assert jobs.get("simulate") == 3 and jobs.get("convert") == 3 and "prepare" not in jobs
+
+
+def test_added_sim_runs_only_that_sim(workdir):
+    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL.replace("n_sims: 3", "n_sims: 4"),)))
+    assert jobs.get("simulate") == 1 and jobs.get("convert") == 1 and "prepare" not in jobs
+
+
+def test_changed_stiffness_resettles_the_packing(workdir):
+    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", young: 5.0e9}",)))
+    assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3
+
+
+@pytest.mark.parametrize("override, expected", [
+    ("slide={youngs: 5.0e9}", "unknown config key 'slide.youngs'; allowed keys under slide"),
+    ("slide={frames: 2}", "config key 'slide.frames' = 2 is not allowed"),
+    ("slide={engine: matdem}", "'matdem' is not one of ['lammps']"),
+])
+def test_bad_config_stops_before_anything_runs(tmp_path, override, expected):
+    proc = snakemake(tmp_path, TARGET, "-n", config=(override,))
+    assert proc.returncode != 0
+    assert expected in proc.stdout + proc.stderr
+    assert not (tmp_path / "results").exists()
