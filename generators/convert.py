@@ -26,7 +26,8 @@ def slide_lammps(raw_dir: Path) -> h5md.Trajectory:
         engine_wall_time=meta["wall_time"], dem_time_step=dt, dem_time_step_limit=meta["dt_limit"],
         steps_per_frame=meta["steps_per_frame"], frame_interval=meta["frame_interval"],
         species_names={str(k): v for k, v in slide.SPECIES_NAMES.items()},
-        contact_model="linear spring-dashpot, Coulomb friction, rolling resistance (LAMMPS granular hooke/tsuji/linear_history/sds)",
+        contact_model=("linear spring-dashpot, Coulomb friction, rolling resistance "
+                       "(LAMMPS granular hooke/tsuji/linear_history/sds)"),
     )
     observables = {}
     ke = np.asarray(meta.get("kinetic_energy", []), float)

@@ -6,7 +6,7 @@ rule dataset:
     output:
         splits="results/{scene}/dataset/splits.csv",
         stats="results/{scene}/dataset/stats.json",
-        plot="results/{scene}/plots/dataset_sample.png",
+        plot=report("results/{scene}/plots/dataset_sample.png", caption="../report/dataset.rst", category="dataset"),
     params:
         radius=connectivity_radius,
     log:
