@@ -1,0 +1,1 @@
+"""Graph-DEM layers (article section 4): constructor, processor of updaters, generator."""
