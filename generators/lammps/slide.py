@@ -63,8 +63,7 @@ def settle(params: dict, out_dir: Path) -> dict:
         stability.check_trajectory(
             f"packing {out_dir.name}", packing[["x", "y"]].to_numpy()[None],
             packing["radius"].to_numpy(), packing["species"].to_numpy() == slide.BEDROCK,
-            np.zeros(2), np.array([width, height]), params["max_overlap"]
-            if "max_overlap" in params else 0.5)
+            np.zeros(2), np.array([width, height]), params["max_overlap"])
         packing.to_csv(tmp / PACKING_FILE, index=False, float_format="%.10g")
         (tmp / (PACKING_FILE + ".dump")).unlink()
         meta = {

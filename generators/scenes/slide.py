@@ -25,7 +25,7 @@ WEAK_REFERENCE_X = 40.0   # m, where the weak layer's base height is measured
 PACKING_KEYS = (
     "domain", "gravity", "bedrock_profile", "soil_surface", "bedrock_radius", "radius",
     "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
-    "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
+    "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed", "max_overlap",
 )
 
 
