@@ -18,8 +18,7 @@ from generators.lammps import runner
 
 
 def collision_restitution(e_input: float, young: float, radius: float, density: float, dt: float,
-                          speed: float = 1.0, kt_over_kn: float = 0.2857,
-                          friction: float = 0.5, rolling_friction: float = 0.0,
+                          kt_over_kn: float, speed: float = 1.0, friction: float = 0.0,
                           kn_radius: float | None = None) -> float:
     """Rebound / impact speed of two equal discs of ``radius`` colliding head-on at +-``speed``.
 
@@ -30,7 +29,7 @@ def collision_restitution(e_input: float, young: float, radius: float, density: 
     contact_time = math.pi / math.sqrt(2 * kn / mass)
     variables = {
         "kn": kn, "e_tsuji": e_input, "kt": kt_over_kn * kn, "mu": friction,
-        "kr": kt_over_kn * kn, "gammar": 0.0, "mur": rolling_friction,
+        "kr": kt_over_kn * kn, "gammar": 0.0, "mur": 0.0,
         "radius": radius, "density": density, "speed": speed, "dt": dt,
         "nsteps": int((0.1 * radius / speed + 3 * contact_time) / dt),
     }
