@@ -1,8 +1,10 @@
-# Graph-DEM pipeline: DEM parameter sweeps -> H5MD -> dataset (-> surrogate, in later stages).
+# Graph-DEM pipeline: DEM parameter sweeps -> H5MD -> dataset -> train -> rollout -> evaluate.
 #
-#   snakemake -c2 results/slide/dataset/stats.json                 # the slide dataset
-#   snakemake -c2 results/slide/dataset/stats.json --config scale=ci
-#   snakemake -c2 results/slide/dataset/stats.json --config slide='{young: 5.0e9}'
+#   snakemake -c2 results/slide/metrics.csv                        # the main job
+#   snakemake -c2 results/slide/metrics.csv --config scale=ci      # tiny, for tests
+#   snakemake -c2 results/slide/metrics.csv --config slide='{young: 5.0e9}'
+#   snakemake -c2 --forcerun train results/slide/metrics.csv       # rerun one stage
+#   snakemake -c2 results/slide/dataset/stats.json                 # stop after a stage
 #
 # The configuration is validated against workflow/schemas/config.schema.yaml before anything runs.
 
@@ -22,9 +24,12 @@ include: "workflow/rules/prepare.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/convert.smk"
 include: "workflow/rules/dataset.smk"
+include: "workflow/rules/train.smk"
+include: "workflow/rules/rollout.smk"
+include: "workflow/rules/evaluate.smk"
 
 
 rule all:
     input:
-        expand("results/{scene}/dataset/stats.json", scene=SCENES),
+        expand("results/{scene}/metrics.csv", scene=SCENES),
     default_target: True

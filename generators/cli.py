@@ -80,6 +80,60 @@ def cmd_dataset(args) -> None:
                          traj.box_lower, traj.box_upper, f"{args.scene}: {first['id']}", names)
 
 
+def _logging() -> None:
+    import logging
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+
+
+def cmd_train(args) -> None:
+    from surrogate import train
+    _logging()
+    state = train.train(args.stats, args.splits, args.model_json, args.train_json, args.out_dir,
+                        threads=args.threads, fresh=args.fresh, max_steps=args.max_steps,
+                        progress=not args.no_progress)
+    print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
+
+
+def cmd_rollout(args) -> None:
+    import torch
+
+    from surrogate import checkpoint, evaluate, rollout
+    from surrogate.samples import load_sim
+    _logging()
+    torch.set_num_threads(max(1, args.threads))
+    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    sha = checkpoint.digest(args.checkpoint)
+    for path in evaluate.data_files(args.data):
+        sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [])
+        result = rollout.rollout(simulator, sim)
+        out = rollout.write(Path(args.out_dir) / f"{sim.id}.h5", sim, result, args.checkpoint, sha)
+        per_frame = result.seconds / max(result.n_predicted, 1)
+        status = "" if result.first_nonfinite is None else f", NON-FINITE from frame {result.first_nonfinite}"
+        print(f"{out}: {result.n_predicted} frames predicted in {result.seconds:.2f} s "
+              f"({1000 * per_frame:.1f} ms per frame, of which graph building "
+              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status})")
+
+
+def cmd_evaluate(args) -> None:
+    from surrogate import evaluate, plots
+    _logging()
+    table, steps, sims = evaluate.evaluate(args.checkpoint, args.data, args.history, rollouts_dir=args.rollouts,
+                                           body_displacement=args.body_displacement, threads=args.threads,
+                                           progress=not args.no_progress)
+    evaluate.write(table, steps, args.out, args.per_step)
+    print(evaluate.report(table))
+    if args.plots:
+        scene = str(table["scene"].iloc[0])
+        plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
+                                  f"{scene}: mean over {len(sims)} test sims")
+        pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
+        if pick is not None and pick.truth.shape[-1] == 2:
+            t = pick.traj
+            plots.animation(Path(args.plots) / "rollout.gif", pick.truth, pick.predictions[evaluate.MODEL], t.radius,
+                            t.species, t.time, t.box_lower, t.box_upper, args.history,
+                            f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)")
+
+
 def cmd_inspect(args) -> None:
     from generators import h5md
     for path in args.files:
@@ -89,11 +143,18 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
+def _checkpoint_and_data(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
+    p.add_argument("--data", type=Path, nargs="+", required=True, help="H5MD files or folders of them")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="graphdem",
-        description="Graph-DEM pipeline: DEM sweeps (LAMMPS) to H5MD datasets. The Snakemake "
-                    "workflow calls these subcommands; they can also be run by hand.")
+        description="Graph-DEM pipeline: DEM sweeps (LAMMPS) to H5MD datasets, then training, "
+                    "rollout and evaluation of the Graph-DEM surrogate. The Snakemake workflow calls "
+                    "these subcommands; they can also be run by hand.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("config", help="print the resolved, validated configuration")
@@ -135,6 +196,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
     p.set_defaults(func=cmd_dataset)
 
+    p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
+                       description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
+                                   "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
+                                   "used to resume) and history.csv into --out-dir.")
+    p.add_argument("--stats", type=Path, required=True, help="dataset stats.json")
+    p.add_argument("--splits", type=Path, required=True, help="dataset splits.csv")
+    p.add_argument("--model-json", type=_json, required=True, help="the scene's model config (JSON)")
+    p.add_argument("--train-json", type=_json, required=True, help="the scene's train config (JSON)")
+    p.add_argument("--out-dir", type=Path, required=True)
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
+    p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("rollout", help="predict every frame after the first K of each sim; write H5MD",
+                       description="Roll the checkpoint's model out on H5MD sims: the first K frames come "
+                                   "from the data, every later frame is predicted; kinematic particles follow "
+                                   "the data. Writes <out-dir>/<sim>.h5 in the sims' layout.")
+    _checkpoint_and_data(p)
+    p.add_argument("--out-dir", type=Path, required=True)
+    p.set_defaults(func=cmd_rollout)
+
+    p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
+                       description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
+                                   "rollout MSE per sim and overall, and the scene's metrics (docs/metrics.md) "
+                                   "where the scene is known, beside a constant-velocity baseline.")
+    _checkpoint_and_data(p)
+    p.add_argument("--history", type=int, required=True, help="K, the history length the checkpoint takes")
+    p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
+    p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
+    p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
+    p.add_argument("--animate", help="sim id to animate (default: the first)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_evaluate)
+
     p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
     p.set_defaults(func=cmd_inspect)
@@ -145,12 +244,15 @@ def main(argv: list[str] | None = None) -> int:
     from generators import contact, h5md, stability
     from generators.lammps import io as lammps_io
     from generators.lammps import runner
+    from surrogate.checkpoint import CheckpointError
+    from surrogate.train import TrainingDiverged
 
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
     except (gconfig.ConfigError, h5md.H5MDError, stability.BlowUp, contact.UnstableTimeStep,
-            runner.LammpsError, lammps_io.LammpsOutputError, FileNotFoundError, ValueError) as exc:
+            runner.LammpsError, lammps_io.LammpsOutputError, CheckpointError, TrainingDiverged,
+            FileNotFoundError, ValueError) as exc:
         print(f"graphdem {args.command}: error: {exc}", file=sys.stderr)
         return 1
     return 0

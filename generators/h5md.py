@@ -62,8 +62,12 @@ class Trajectory:
     def n_particles(self) -> int:
         return int(self.position.shape[1])
 
-    def validate(self, where: str = "trajectory") -> Trajectory:
-        """Check shapes, finiteness, increasing times and the kinematic mask; raise H5MDError."""
+    def validate(self, where: str = "trajectory", allow_nonfinite: bool = False) -> Trajectory:
+        """Check shapes, finiteness, increasing times and the kinematic mask; raise H5MDError.
+
+        ``allow_nonfinite`` admits NaN positions (a surrogate rollout that blew up is stored as
+        such, never hidden); every other check still applies.
+        """
         pos = np.asarray(self.position)
         if pos.ndim != 3 or pos.shape[2] not in (2, 3):
             raise H5MDError(f"{where}: position must be [T, N, D] with D in (2, 3), got shape {pos.shape}")
@@ -81,7 +85,7 @@ class Trajectory:
             if np.shape(arr) != shape:
                 raise H5MDError(f"{where}: {name} has shape {np.shape(arr)}, expected {shape}")
         bad = ~np.isfinite(pos)
-        if bad.any():
+        if bad.any() and not allow_nonfinite:
             frame, particle, _ = np.argwhere(bad)[0]
             raise H5MDError(f"{where}: non-finite position at frame {frame}, particle {particle}")
         for name in ("time", "radius", "mass"):
@@ -130,10 +134,10 @@ def _from_attr(value):
     return value
 
 
-def write(path: str | Path, traj: Trajectory, author: str = "graphdem") -> Path:
+def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_nonfinite: bool = False) -> Path:
     """Validate ``traj`` and write it atomically to ``path`` as H5MD."""
     path = Path(path)
-    traj.validate(str(path))
+    traj.validate(str(path), allow_nonfinite)
     t, n, d = traj.position.shape
     with atomic_path(path) as tmp:
         with h5py.File(tmp, "w") as f:
@@ -180,7 +184,7 @@ def _need(f: h5py.File, key: str, path: Path):
     return f[key]
 
 
-def read(path: str | Path, frames: slice | None = None) -> Trajectory:
+def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
     """Read and validate an H5MD file; raise H5MDError naming the file and the problem."""
     path = Path(path)
     if not path.is_file():
@@ -228,4 +232,4 @@ def read(path: str | Path, frames: slice | None = None) -> Trajectory:
         raise
     except (OSError, KeyError, ValueError, TypeError) as exc:
         raise H5MDError(f"{path}: unreadable H5MD content (corrupt?): {exc}") from exc
-    return traj.validate(str(path))
+    return traj.validate(str(path), allow_nonfinite)

@@ -57,6 +57,7 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
     meta = {}
     species = set()
     kinematic_species = set()
+    props: dict[str, _Moments] = {}
     for path in tqdm(paths, desc="dataset statistics", unit="sim"):
         traj = h5md.read(path)
         if vel is None:
@@ -71,6 +72,11 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         v = np.diff(p, axis=0)
         vel.add(v)
         acc.add(np.diff(v, axis=0))
+        columns = {"radius": np.asarray(traj.radius, np.float64)}
+        for j, name in enumerate(traj.property_names):
+            columns[name] = np.asarray(traj.properties, np.float64)[:, j]
+        for name, values in columns.items():
+            props.setdefault(name, _Moments(1)).add(values[moving])
         species.update(np.unique(traj.species).tolist())
         kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
     floor = 1e-12
@@ -82,6 +88,9 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         "connectivity_radius": float(connectivity_radius),
         "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
         "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
+        # node properties f_i (radius and the H5MD properties) over the moving train particles
+        "property_stats": {name: {"mean": float(m.mean[0]), "std": float(max(m.std[0], floor)), "log": False}
+                           for name, m in props.items()},
     }
 
 

@@ -72,3 +72,29 @@ def all_sims(wildcards) -> list[str]:
 
 def connectivity_radius(wildcards) -> float:
     return CFG[wildcards.scene]["connectivity_radius"]
+
+
+def test_ids(scene: str) -> list[str]:
+    table = SWEEPS[scene]
+    return list(table.loc[table["split"] == "test", "id"])
+
+
+def test_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in test_ids(wildcards.scene)]
+
+
+def test_rollouts(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/rollouts/{i}.h5" for i in test_ids(wildcards.scene)]
+
+
+def model_config_json(wildcards) -> str:
+    return _json(CFG[wildcards.scene]["model"])
+
+
+def train_config_json(wildcards) -> str:
+    return _json(CFG[wildcards.scene]["train"])
+
+
+def body_displacement_arg(wildcards) -> str:
+    value = CFG[wildcards.scene]["evaluate"]["body_displacement"]
+    return "" if value is None else f"--body-displacement {value}"

@@ -1,0 +1,228 @@
+"""Evaluation (docs/metrics.md): rollout MSE and the scene metrics of truth, Graph-DEM and the
+constant-velocity baseline, computed by the same code, written to metrics.csv and
+metrics_per_step.csv with the checkpoint, config and code version they came from."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+from tqdm import tqdm
+
+from generators import h5md
+from generators.atomic import atomic_path
+from surrogate import checkpoint
+from surrogate.baseline import constant_velocity
+from surrogate.metrics import SCENES, accuracy
+from surrogate.rollout import rollout, rollout_mse
+from surrogate.samples import load_sim
+
+log = logging.getLogger("graphdem.evaluate")
+
+MODEL, BASELINE = "graphdem", "constant_velocity"
+MSE = "rollout MSE"
+SECONDS = "seconds per frame"
+
+
+@dataclass
+class Evaluated:
+    """One test sim: its truth and the two predictions, all [T, N, D]."""
+
+    id: str
+    traj: h5md.Trajectory
+    truth: np.ndarray
+    predictions: dict[str, np.ndarray]
+    first_nonfinite: dict[str, int | None]
+    seconds_per_frame: float = float("nan")   # Graph-DEM wall time per predicted frame
+
+
+def code_version() -> str:
+    """Package version plus the git commit of the source tree, when there is one."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return f"{h5md.CREATOR_VERSION}+{commit}{'.dirty' if dirty else ''}"
+    except (OSError, subprocess.SubprocessError):
+        return h5md.CREATOR_VERSION
+
+
+def data_files(data: list[Path]) -> list[Path]:
+    """H5MD files named directly or found (``*.h5``, sorted) in the given folders."""
+    files: list[Path] = []
+    for item in data:
+        item = Path(item)
+        if item.is_dir():
+            found = sorted(item.glob("*.h5"))
+            if not found:
+                raise FileNotFoundError(f"{item}: no *.h5 files in this folder")
+            files.extend(found)
+        elif item.is_file():
+            files.append(item)
+        else:
+            raise FileNotFoundError(f"{item}: no such file or folder")
+    return files
+
+
+def read_rollout(path: Path, sha: str) -> h5md.Trajectory:
+    traj = h5md.read(path, allow_nonfinite=True)
+    made_by = traj.parameters.get("rollout_checkpoint_sha")
+    if made_by != sha:
+        raise ValueError(f"{path}: this rollout was made by checkpoint {made_by}, not by {sha}; rerun the rollout")
+    return traj
+
+
+def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray, truth, prediction, k: int):
+    n = len(prediction)
+    return pd.DataFrame({"scene": scene, "method": method, "sim": sim, "metric": metric,
+                         "tau": np.arange(1, n + 1), "frame": np.arange(k, k + n), "time": times[k:k + n],
+                         "truth": np.nan if truth is None else truth, "prediction": prediction})
+
+
+def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
+             body_displacement: float | None = None, threads: int = 1,
+             progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+    """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims."""
+    torch.set_num_threads(max(1, int(threads)))
+    simulator, meta = checkpoint.simulator_from(checkpoint_path)
+    if int(meta["model"]["history"]) != int(history):
+        raise ValueError(f"{checkpoint_path} was trained with a history of K = {meta['model']['history']} "
+                         f"frames; --history {history} does not match it")
+    sha = checkpoint.digest(checkpoint_path)
+    props = list(meta["model"].get("properties") or [])
+    per_step, sims = [], []
+    for path in tqdm(data_files(data), desc="evaluate", unit="sim", disable=not progress):
+        traj = h5md.read(path)
+        sim = load_sim(path, meta["stats"], props, traj)
+        if rollouts_dir is not None:
+            predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha)
+            if predicted.position.shape != traj.position.shape:
+                raise ValueError(f"{rollouts_dir}/{sim.id}.h5: shape {predicted.position.shape} differs from the "
+                                 f"sim's {traj.position.shape}")
+            pred, bad = np.asarray(predicted.position, np.float64), predicted.parameters.get("rollout_first_nonfinite")
+            bad = None if bad in (None, "null", -1) else int(bad)
+            seconds = float(predicted.parameters.get("rollout_seconds_per_frame", np.nan))
+        else:
+            result = rollout(simulator, sim)
+            pred, bad = result.position, result.first_nonfinite
+            seconds = result.seconds / max(result.n_predicted, 1)
+        truth = np.asarray(traj.position, np.float64)
+        baseline = constant_velocity(truth, traj.kinematic, history)
+        entry = Evaluated(sim.id, traj, truth, {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None},
+                          seconds)
+        if bad is not None:
+            log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
+        sims.append(entry)
+        scene = str(traj.parameters.get("scene", "unknown"))
+        moving = ~np.asarray(traj.kinematic, bool)
+        metrics = SCENES[scene](traj.kinematic, traj.radius, body_displacement) if scene in SCENES else None
+        truth_values = metrics(truth) if metrics else {}
+        for method, prediction in entry.predictions.items():
+            per_step.append(_per_step(scene, method, sim.id, MSE, traj.time, None,
+                                      rollout_mse(prediction, truth, moving, history), history))
+            if metrics is None:
+                continue
+            for name, values in metrics(prediction).items():
+                per_step.append(_per_step(scene, method, sim.id, name, traj.time, truth_values[name][history:],
+                                          values[history:], history))
+            for name, values in metrics.compare(prediction, truth).items():
+                per_step.append(_per_step(scene, method, sim.id, name, traj.time, None, values[history:], history))
+    steps = pd.concat(per_step, ignore_index=True)
+    table = summarise(steps)
+    timing = pd.DataFrame([{"scene": table["scene"].iloc[0], "method": MODEL, "metric": SECONDS, "sim": "all",
+                            "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])),
+                            "n_sims": len(sims)}])
+    table = pd.concat([table, timing.reindex(columns=table.columns)], ignore_index=True)
+    provenance = {"history": int(history), "checkpoint": str(checkpoint_path), "checkpoint_sha": sha,
+                  "config_sha": hashlib.sha256(json.dumps({k: meta[k] for k in ("model", "train", "stats")},
+                                                          sort_keys=True).encode()).hexdigest()[:12],
+                  "code_version": code_version(),
+                  "config": json.dumps({"model": meta["model"], "train": meta["train"]}, sort_keys=True)}
+    for df in (table, steps):
+        for key, value in provenance.items():
+            df[key] = value
+    return table, steps, sims
+
+
+def summarise(steps: pd.DataFrame) -> pd.DataFrame:
+    """metrics.csv rows: per method and metric over all sims (``sim = all``), plus rollout MSE per sim."""
+    rows = []
+    order = list(dict.fromkeys(steps["metric"]))
+    for (method, metric), group in steps.groupby(["method", "metric"], sort=False):
+        scene = group["scene"].iloc[0]
+        per_sim = group.groupby("sim", sort=False)["prediction"].mean()     # NaN stays NaN: nothing skipped
+        base = {"scene": scene, "method": method, "metric": metric, "n_sims": int(group["sim"].nunique()),
+                "n_frames": int(len(group))}
+        if metric == MSE:
+            blown = int(per_sim.isna().sum())
+            rows.append({**base, "sim": "all", "mse": float(per_sim.mean(skipna=False)),
+                         "mean_prediction": float(per_sim.mean(skipna=False)), "n_blown_up": blown,
+                         "blown_up_sims": " ".join(per_sim.index[per_sim.isna()])})
+            for sim, value in per_sim.items():
+                rows.append({**base, "sim": sim, "mse": float(value), "mean_prediction": float(value),
+                             "n_sims": 1, "n_frames": int((group["sim"] == sim).sum()),
+                             "n_blown_up": int(np.isnan(value))})
+        elif group["truth"].notna().any():
+            acc, left_out = accuracy(group["truth"].to_numpy(), group["prediction"].to_numpy())
+            rows.append({**base, "sim": "all", "acc_percent": acc, "mean_truth": float(group["truth"].mean()),
+                         "mean_prediction": float(group["prediction"].mean()), "n_frames_left_out": left_out})
+        else:
+            rows.append({**base, "sim": "all", "mean_prediction": float(group["prediction"].mean(skipna=False))})
+    columns = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
+               "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims"]
+    table = pd.DataFrame(rows).reindex(columns=columns)
+    table["metric"] = pd.Categorical(table["metric"], categories=order, ordered=True)
+    table = table.sort_values(["metric", "method"], kind="stable").reset_index(drop=True)
+    table["metric"] = table["metric"].astype(str)
+    return table
+
+
+def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
+    """Per method, metric and tau: truth and prediction averaged over sims (``sim = all`` rows)."""
+    keys = ["scene", "method", "metric", "tau", "frame"]
+    mean = steps.groupby(keys, sort=False)[["time", "truth", "prediction"]].mean().reset_index()
+    mean.insert(2, "sim", "all")
+    return mean
+
+
+def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv: Path | None) -> None:
+    with atomic_path(Path(out_csv)) as tmp:
+        table.to_csv(tmp, index=False)
+    if per_step_csv is not None:
+        extra = [c for c in steps.columns if c not in ("scene", "method", "sim", "metric", "tau", "frame", "time",
+                                                       "truth", "prediction")]
+        both = pd.concat([mean_per_step(steps).assign(**{c: steps[c].iloc[0] for c in extra}), steps],
+                         ignore_index=True)
+        with atomic_path(Path(per_step_csv)) as tmp:
+            both.to_csv(tmp, index=False)
+
+
+def report(table: pd.DataFrame) -> str:
+    """A short human-readable summary (printed by ``graphdem evaluate``)."""
+    lines = []
+    overall = table[table["sim"] == "all"]
+    for _, row in overall.iterrows():
+        if row["metric"] == SECONDS:
+            value = f"{1000 * row['mean_prediction']:.1f} ms per predicted frame (wall time, mean over sims)"
+        elif row["metric"] == MSE:
+            value = f"MSE {row['mse']:.4g} m^2"
+            if row["n_blown_up"]:
+                value += f" ({int(row['n_blown_up'])} blown up: {row['blown_up_sims']})"
+        elif pd.notna(row["acc_percent"]):
+            value = (f"Acc {row['acc_percent']:.1f} %  (truth {row['mean_truth']:.4g}, "
+                     f"prediction {row['mean_prediction']:.4g}, {int(row['n_frames_left_out'])} frames left out)")
+        else:
+            value = f"mean {row['mean_prediction']:.4g}"
+        lines.append(f"{row['method']:>18}  {row['metric']:<11} {value}")
+    per_sim = table[(table["metric"] == MSE) & (table["sim"] != "all") & (table["method"] == MODEL)]
+    lines += [f"{MODEL:>18}  {MSE} of {row['sim']}: {row['mse']:.4g} m^2" for _, row in per_sim.iterrows()]
+    return "\n".join(lines)

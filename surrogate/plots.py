@@ -1,0 +1,83 @@
+"""Pictures of an evaluation: metrics over frames (like the article's Fig. 10) and an animation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+
+from generators.atomic import atomic_path  # noqa: E402
+from generators.plots import SPECIES_COLOURS, draw_discs  # noqa: E402
+
+STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
+         "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
+         "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity")}
+UNITS = {"Slide Num": "particles", "Max Ht": "m", "Mean Ht": "m", "Tongue Dis": "m", "Dis": "m", "Dis mean": "m",
+         "rollout MSE": "m$^2$"}
+
+
+def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str) -> Path:
+    """One panel per metric: mean over test sims of truth and of each prediction against time."""
+    mean = per_step[per_step["sim"] == "all"]
+    metrics = list(dict.fromkeys(mean["metric"]))
+    cols = min(3, len(metrics))
+    rows = int(np.ceil(len(metrics) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.2 * rows), squeeze=False, constrained_layout=True)
+    for ax, metric in zip(axes.flat, metrics, strict=False):
+        part = mean[mean["metric"] == metric]
+        first = part[part["method"] == part["method"].iloc[0]]
+        if first["truth"].notna().any():
+            ax.plot(first["time"], first["truth"], **STYLE["truth"])
+        for method, group in part.groupby("method", sort=False):
+            ax.plot(group["time"], group["prediction"], **STYLE.get(method, dict(label=method)))
+        ax.set_title(metric)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(UNITS.get(metric, ""))
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[len(metrics):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(title)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return path
+
+
+def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.ndarray, species: np.ndarray,
+              time: np.ndarray, lower: np.ndarray, upper: np.ndarray, history: int, title: str,
+              fps: int = 4) -> Path:
+    """GIF (Pillow, no external binary) of a 2D sim: DEM truth and Graph-DEM side by side."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, constrained_layout=True)
+    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=f"species {k}")
+               for k, c in SPECIES_COLOURS.items() if k in set(np.asarray(species).tolist())]
+
+    def draw(frame: int):
+        for ax, pos, name in ((axes[0], truth, "DEM (truth)"), (axes[1], prediction, "Graph-DEM")):
+            ax.clear()
+            finite = np.isfinite(pos[frame]).all(axis=1)
+            draw_discs(ax, pos[frame][finite], np.asarray(radius)[finite], np.asarray(species)[finite])
+            ax.set_xlim(lower[0], upper[0])
+            ax.set_ylim(lower[1], upper[1])
+            ax.set_aspect("equal")
+            ax.set_xlabel("x (m)")
+            stage = "history (data)" if frame < history else f"predicted step {frame - history + 1}"
+            ax.set_title(f"{name}: t = {time[frame]:.2f} s, {stage}", fontsize=9)
+        axes[0].set_ylabel("y (m)")
+        axes[1].legend(handles=handles, loc="upper right", fontsize=7)
+        fig.suptitle(title)
+        return []
+
+    anim = FuncAnimation(fig, draw, frames=len(truth), blit=False)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        anim.save(tmp, writer=PillowWriter(fps=fps), dpi=70)
+    plt.close(fig)
+    return path

@@ -1,0 +1,85 @@
+"""Simulations held in memory as tensors, and the (sim, frame) index of training samples.
+
+A training sample (article 5.4.3) is the history window ``p^{t-K+1..t}`` of one sim and the
+next frame ``p^{t+1}``; every sim of T frames yields T - K samples (``t = K-1 .. T-2``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from generators import h5md
+
+
+@dataclass
+class Sim:
+    """One H5MD trajectory as tensors, with the node properties the model was configured with."""
+
+    id: str
+    path: Path
+    position: torch.Tensor          # [T, N, D] float32, metres
+    types: torch.Tensor             # [N] long
+    kinematic: torch.Tensor         # [N] bool
+    props: torch.Tensor | None      # [N, F] normalised, None when the model takes no property
+    traj: h5md.Trajectory           # the file as read (time, radius, parameters, ...)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.position.shape[0])
+
+
+def property_values(traj: h5md.Trajectory, name: str) -> np.ndarray:
+    """Per-particle values of a node property: ``radius`` or a column of the H5MD properties."""
+    if name == "radius":
+        return np.asarray(traj.radius, np.float64)
+    if name in traj.property_names:
+        return np.asarray(traj.properties, np.float64)[:, traj.property_names.index(name)]
+    raise ValueError(f"node property {name!r} is not in the data: allowed 'radius' or one of "
+                     f"{list(traj.property_names) or 'no stored properties'}")
+
+
+def normalised_properties(traj: h5md.Trajectory, names: list[str], stats: dict) -> torch.Tensor | None:
+    """Properties z-scored with the train-split statistics (``log`` first where stats say so)."""
+    if not names:
+        return None
+    columns = []
+    for name in names:
+        s = stats.get("property_stats", {}).get(name)
+        if s is None:
+            raise ValueError(f"node property {name!r} has no statistics in stats.json; "
+                             f"known: {sorted(stats.get('property_stats', {}))}")
+        values = property_values(traj, name)
+        if s.get("log"):
+            values = np.log(values)
+        columns.append((values - s["mean"]) / s["std"])
+    return torch.tensor(np.stack(columns, axis=1), dtype=torch.float32)
+
+
+def load_sim(path: str | Path, stats: dict, property_names: list[str] | None = None,
+             traj: h5md.Trajectory | None = None) -> Sim:
+    path = Path(path)
+    traj = traj if traj is not None else h5md.read(path)
+    if traj.dim != stats["dim"]:
+        raise ValueError(f"{path}: dimension {traj.dim} differs from the model's {stats['dim']}")
+    if int(traj.species.max()) >= stats["n_types"]:
+        raise ValueError(f"{path}: species {int(traj.species.max())} is beyond the {stats['n_types']} types "
+                         f"the model was trained with")
+    return Sim(id=path.stem, path=path, position=torch.tensor(np.asarray(traj.position, np.float32)),
+               types=torch.tensor(np.asarray(traj.species), dtype=torch.long),
+               kinematic=torch.tensor(np.asarray(traj.kinematic, bool)),
+               props=normalised_properties(traj, list(property_names or []), stats), traj=traj)
+
+
+def sample_index(sims: list[Sim], history: int) -> list[tuple[int, int]]:
+    """Every (sim index, last history frame t) with a next frame to predict."""
+    index = []
+    for s, sim in enumerate(sims):
+        if sim.n_frames < history + 1:
+            raise ValueError(f"{sim.path}: {sim.n_frames} frames cannot give a history of {history} "
+                             f"plus a target frame")
+        index.extend((s, t) for t in range(history - 1, sim.n_frames - 1))
+    return index

@@ -1,0 +1,107 @@
+"""The learned simulator: Graph-DEM wrapped in the data conventions of article section 3.
+
+It turns a window of K positions into model inputs (normalised velocities, type embedding ids,
+boundary distances, the radius graph), turns the model's normalised acceleration back into
+physical units and advances positions with eq. (1):
+
+.. math::
+    \\dot p^{t+1} = \\dot p^{t} + \\ddot p^{t+1}, \\qquad p^{t+1} = p^{t} + \\dot p^{t+1}
+
+Kinematic particles are never predicted: :meth:`step` returns their next position unchanged from
+whatever the caller supplies (the data), and the graph has no kinematic-kinematic edges.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from surrogate.graph import radius_graph
+from surrogate.model.constructor import boundary_features
+from surrogate.model.graphdem import GraphDEM
+
+
+@dataclass
+class Graph:
+    """Model inputs of one or several disjoint samples stacked along the particle axis."""
+
+    window: torch.Tensor        # [K, N, D] positions (m)
+    types: torch.Tensor         # [N] long
+    kinematic: torch.Tensor     # [N] bool
+    edge_index: torch.Tensor    # [2, E]
+    props: torch.Tensor | None  # [N, F] normalised properties, None for a scene without any
+
+
+def build_graph(window: torch.Tensor, types: torch.Tensor, kinematic: torch.Tensor, radius: float,
+                props: torch.Tensor | None = None) -> Graph:
+    """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2)."""
+    edges = radius_graph(window[-1], radius, kinematic.cpu().numpy())
+    return Graph(window, types, kinematic, edges, props)
+
+
+def stack_graphs(graphs: list[Graph]) -> Graph:
+    """Disjoint union of several samples (a mini-batch), edge indices offset per sample."""
+    if len(graphs) == 1:
+        return graphs[0]
+    offsets = np.cumsum([0] + [g.types.numel() for g in graphs[:-1]])
+    props = [g.props for g in graphs]
+    return Graph(
+        window=torch.cat([g.window for g in graphs], dim=1),
+        types=torch.cat([g.types for g in graphs]),
+        kinematic=torch.cat([g.kinematic for g in graphs]),
+        edge_index=torch.cat([g.edge_index + int(o) for g, o in zip(graphs, offsets, strict=True)], dim=1),
+        props=None if props[0] is None else torch.cat(props),
+    )
+
+
+class LearnedSimulator(nn.Module):
+    """Graph-DEM plus normalisation statistics, boundaries and radius from the dataset metadata."""
+
+    def __init__(self, stats: dict, model_cfg: dict):
+        super().__init__()
+        self.dim = int(stats["dim"])
+        self.history = int(model_cfg["history"])
+        self.radius = float(stats["connectivity_radius"])
+        self.property_names = list(model_cfg.get("properties") or [])
+        self.model = GraphDEM(
+            dim=self.dim, history=self.history, n_types=int(stats["n_types"]),
+            n_props=len(self.property_names), latent=int(model_cfg["latent"]), hidden=int(model_cfg["hidden"]),
+            message_passing=int(model_cfg["message_passing"]), embed=int(model_cfg["embed"]),
+            layers=int(model_cfg["mlp_layers"]))
+        bounds = torch.tensor(stats["bounds"], dtype=torch.float32)
+        self.register_buffer("lower", bounds[:, 0].clone())
+        self.register_buffer("upper", bounds[:, 1].clone())
+        for name in ("velocity_mean", "velocity_std", "acceleration_mean", "acceleration_std"):
+            self.register_buffer(name, torch.tensor(stats[name], dtype=torch.float32))
+
+    def velocities(self, window: torch.Tensor) -> torch.Tensor:
+        """Normalised K-1 velocities ``[N, K-1, D]`` of a window ``[K, N, D]`` (eq. 1)."""
+        vel = (window[1:] - window[:-1]).transpose(0, 1)
+        return (vel - self.velocity_mean) / self.velocity_std
+
+    def forward(self, graph: Graph) -> torch.Tensor:
+        """Normalised acceleration ``[N, D]`` of the next frame."""
+        if graph.window.shape[0] != self.history:
+            raise ValueError(f"the model takes a history of K = {self.history} frames, got {graph.window.shape[0]}")
+        last = graph.window[-1]
+        boundary = boundary_features(last, self.lower, self.upper, self.radius)
+        return self.model(self.velocities(graph.window), graph.types, boundary, last, graph.edge_index,
+                          self.radius, graph.props)
+
+    def target(self, window: torch.Tensor, next_position: torch.Tensor) -> torch.Tensor:
+        """Normalised acceleration that takes ``window`` to ``next_position``."""
+        acc = next_position - 2 * window[-1] + window[-2]
+        return (acc - self.acceleration_mean) / self.acceleration_std
+
+    def integrate(self, window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
+        """Next positions from a normalised acceleration (eq. 1)."""
+        acc = acceleration * self.acceleration_std + self.acceleration_mean
+        return window[-1] + (window[-1] - window[-2]) + acc
+
+    def step(self, graph: Graph, kinematic_next: torch.Tensor) -> torch.Tensor:
+        """Positions of the next frame: predicted for moving particles, ``kinematic_next`` for the rest."""
+        predicted = self.integrate(graph.window, self(graph))
+        return torch.where(graph.kinematic.unsqueeze(-1), kinematic_next, predicted)

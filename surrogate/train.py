@@ -1,0 +1,230 @@
+"""Training (article 5.4.3): Adam, L2 loss on the normalised acceleration of moving particles,
+random-walk input noise, validation by rollout error, early stopping, resumable checkpoints.
+
+Files in the output folder:
+
+* ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats;
+* ``history.csv``: per epoch the mean training loss and the validation rollout MSE;
+* ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
+  best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
+  A run that finds an unfinished ``last.pt`` with the same model, data and training settings
+  continues from it, with the same sample order and noise as an uninterrupted run; a finished or
+  incompatible one is replaced by a fresh run.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+from tqdm import tqdm
+
+from generators.atomic import atomic_path
+from surrogate import checkpoint
+from surrogate.noise import random_walk_position_noise
+from surrogate.rollout import rollout, rollout_mse
+from surrogate.samples import Sim, load_sim, sample_index
+from surrogate.simulator import LearnedSimulator, build_graph, stack_graphs
+
+log = logging.getLogger("graphdem.train")
+
+# Settings that may change between an interrupted run and its continuation.
+_RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
+
+
+class TrainingDiverged(RuntimeError):
+    """The loss became non-finite; the message names the step and the samples."""
+
+
+def _generator(*seeds: int) -> torch.Generator:
+    return torch.Generator().manual_seed(int(np.random.SeedSequence(list(seeds)).generate_state(1)[0]))
+
+
+def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
+               generator: torch.Generator) -> torch.Tensor:
+    """Mean squared error of the normalised acceleration over the moving particles of a batch."""
+    k = simulator.history
+    graphs, targets = [], []
+    for s, t in batch:
+        sim = sims[s]
+        window = sim.position[t - k + 1:t + 1]
+        moving = ~sim.kinematic
+        noise = random_walk_position_noise(k, window.shape[1], window.shape[2], noise_std, moving, generator)
+        noisy = window + noise
+        # the target keeps the true next position relative to the noisy last one: the model learns to
+        # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
+        target_next = sim.position[t + 1] + noise[-1]
+        graphs.append(build_graph(noisy, sim.types, sim.kinematic, simulator.radius, sim.props))
+        targets.append(simulator.target(noisy, target_next))
+    graph = stack_graphs(graphs)
+    moving = ~graph.kinematic
+    prediction = simulator(graph)
+    return ((prediction - torch.cat(targets)) ** 2)[moving].mean()
+
+
+def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
+    """Mean over sims of the rollout MSE (metrics.md); a rollout that blows up scores +inf."""
+    simulator.eval()
+    values = []
+    for sim in sims:
+        result = rollout(simulator, sim)
+        if result.first_nonfinite is not None:
+            log.warning("validation rollout of %s is non-finite from frame %d", sim.id, result.first_nonfinite)
+            values.append(math.inf)
+            continue
+        values.append(float(rollout_mse(result.position, sim.position.numpy(), ~sim.kinematic.numpy(),
+                                        simulator.history).mean()))
+    simulator.train()
+    return float(np.mean(values)) if values else math.nan
+
+
+def _settings(model_cfg: dict, train_cfg: dict, stats: dict, train_ids: list[str]) -> dict:
+    fixed = {k: v for k, v in train_cfg.items() if k not in _RESUMABLE_CHANGES}
+    return {"model": model_cfg, "train": fixed, "stats": stats, "train_sims": train_ids}
+
+
+def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, out_dir: Path,
+          threads: int = 1, fresh: bool = False, max_steps: int | None = None, progress: bool = True) -> dict:
+    """Train (or continue training) and write best.pt, last.pt and history.csv into ``out_dir``.
+
+    ``max_steps`` stops after that many optimiser steps in this call, leaving an unfinished
+    ``last.pt`` (used to test resuming; a real interruption behaves the same).
+    """
+    torch.set_num_threads(max(1, int(threads)))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stats = json.loads(Path(stats_path).read_text())
+    splits = pd.read_csv(splits_csv)
+    props = list(model_cfg.get("properties") or [])
+    train_paths = list(splits.loc[splits["split"] == "train", "path"])
+    valid_paths = list(splits.loc[splits["split"] == "valid", "path"])
+    if not train_paths:
+        raise ValueError(f"{splits_csv}: the train split is empty")
+    if train_cfg.get("valid_sims"):
+        valid_paths = valid_paths[: int(train_cfg["valid_sims"])]
+    if not valid_paths:
+        log.warning("the valid split is empty: the best checkpoint is chosen by training loss")
+    train_sims = [load_sim(p, stats, props) for p in tqdm(train_paths, desc="load train", disable=not progress)]
+    valid_sims = [load_sim(p, stats, props) for p in valid_paths]
+    k = int(model_cfg["history"])
+    index = sample_index(train_sims, k)
+    batch_size = int(train_cfg["batch_size"])
+    n_batches = math.ceil(len(index) / batch_size)
+    seed = int(train_cfg["seed"])
+    settings = _settings(model_cfg, train_cfg, stats, [s.id for s in train_sims])
+
+    torch.manual_seed(seed)
+    simulator = LearnedSimulator(stats, model_cfg)
+    optimiser = torch.optim.Adam(simulator.parameters(), lr=float(train_cfg["lr"]))
+    state = {"epoch": 0, "batch": 0, "step": 0, "history": [], "best_mse": math.inf, "best_epoch": -1,
+             "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0}
+    best_weights = None
+    last = out_dir / "last.pt"
+    if last.exists() and not fresh:
+        try:
+            saved = checkpoint.load(last)
+        except checkpoint.CheckpointError as exc:
+            log.warning("ignoring %s: %s", last, exc)
+            saved = None
+        if saved is None:
+            pass
+        elif saved["json"].get("state", {}).get("finished"):
+            log.info("%s is a finished run: starting a fresh one", last)
+        elif saved["json"].get("settings") != json.loads(json.dumps(settings)):
+            log.info("%s was trained with other settings or data: starting a fresh run", last)
+        else:
+            simulator.load_state_dict(saved["model"])
+            optimiser.load_state_dict(saved["optimiser"])
+            best_weights = saved.get("best_model")
+            state = saved["json"]["state"]
+            log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
+                     state["step"])
+
+    def meta() -> dict:
+        return {"model": model_cfg, "train": train_cfg, "stats": stats, "settings": settings, "state": state}
+
+    def save_last() -> None:
+        payload = {"model": simulator.state_dict(), "optimiser": optimiser.state_dict(), "json": meta()}
+        if best_weights is not None:
+            payload["best_model"] = best_weights
+        checkpoint.save(last, payload)
+
+    def save_outputs() -> None:
+        history = pd.DataFrame(state["history"], columns=[
+            "epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds"])
+        with atomic_path(out_dir / "history.csv") as tmp:
+            history.to_csv(tmp, index=False)
+        if best_weights is not None:
+            checkpoint.save(out_dir / "best.pt", {"model": best_weights, "json": {
+                "model": model_cfg, "train": train_cfg, "stats": stats, "epoch": state["best_epoch"],
+                "valid_rollout_mse": state["best_mse"], "step": state["step"]}})
+
+    epochs, patience = int(train_cfg["epochs"]), int(train_cfg["patience"])
+    every = int(train_cfg["checkpoint_every"])
+    steps_this_call = 0
+    simulator.train()
+    clock = time.perf_counter()
+    while state["epoch"] < epochs and not state["finished"]:
+        epoch = state["epoch"]
+        order = torch.randperm(len(index), generator=_generator(seed, epoch)).tolist()
+        bar = tqdm(range(state["batch"], n_batches), desc=f"epoch {epoch + 1}/{epochs}", unit="batch",
+                   disable=not progress, mininterval=2.0)
+        for b in bar:
+            batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
+            loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
+                              _generator(seed, epoch, b, 1))
+            if not torch.isfinite(loss):
+                samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
+                raise TrainingDiverged(
+                    f"non-finite training loss ({loss.item()}) at step {state['step'] + 1} (epoch {epoch + 1}, "
+                    f"batch {b + 1}) on samples: {samples}; the last good state is in {last}")
+            optimiser.zero_grad(set_to_none=True)
+            loss.backward()
+            optimiser.step()
+            state["step"] += 1
+            state["batch"] = b + 1
+            state["loss_sum"] += loss.item()
+            state["loss_count"] += 1
+            steps_this_call += 1
+            bar.set_postfix(loss=f"{state['loss_sum'] / state['loss_count']:.4g}")
+            if max_steps is not None and steps_this_call >= max_steps:
+                state["seconds"] += time.perf_counter() - clock
+                save_last()
+                save_outputs()
+                log.info("stopped after %d steps as asked (step %d); rerun to continue", max_steps, state["step"])
+                return state
+            if every and state["step"] % every == 0:
+                state["seconds"] += time.perf_counter() - clock
+                clock = time.perf_counter()
+                save_last()
+        bar.close()
+        train_loss = state["loss_sum"] / max(state["loss_count"], 1)
+        valid = validation_mse(simulator, valid_sims) if valid_sims else train_loss
+        improved = valid < state["best_mse"]
+        if improved:
+            state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
+            best_weights = {k: v.detach().clone() for k, v in simulator.state_dict().items()}
+        else:
+            state["bad_epochs"] += 1
+        state["seconds"] += time.perf_counter() - clock
+        clock = time.perf_counter()
+        state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2)])
+        log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
+                 " (best)" if improved else "")
+        state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)
+        if state["bad_epochs"] >= patience:
+            log.info("early stopping: no improvement for %d epochs", patience)
+            state["finished"] = True
+        if state["epoch"] >= epochs:
+            state["finished"] = True
+        save_last()
+        save_outputs()
+    if best_weights is None:
+        raise ValueError("training ended before any epoch completed: no best checkpoint")
+    return state

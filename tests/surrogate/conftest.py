@@ -1,0 +1,33 @@
+"""A tiny real slide dataset (LAMMPS, ci scale) shared by the surrogate tests."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from generators import config, convert, sweep
+from generators.lammps import slide as lammps_slide
+from generators.scenes import slide
+from surrogate import dataset
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory):
+    """4 real sims (2 train, 1 valid, 1 test) of 10 frames, their splits and stats, and tiny model configs."""
+    cfg = config.load({"scale": "ci", "slide": {
+        "n_sims": 4, "settle_time": 4.0, "frames": 10, "frame_interval": 0.1, "record_start": 0.5}})["slide"]
+    root = tmp_path_factory.mktemp("tiny_slide")
+    table = sweep.build("slide", cfg)
+    table.to_csv(root / "sweep.csv", index=False)
+    packing = root / "packing"
+    lammps_slide.settle(slide.packing_params(cfg, 0), packing)
+    for row in table.to_dict("records"):
+        lammps_slide.simulate(row, packing, root / "raw" / row["id"])
+        convert.convert("slide", root / "raw" / row["id"], root / "sims" / f"{row['id']}.h5")
+    stats = dataset.build(root / "sweep.csv", root / "sims", root / "dataset", cfg["connectivity_radius"])
+    model = {**cfg["model"], "history": 4}
+    train = {**cfg["train"], "lr": 1e-3, "batch_size": 2, "epochs": 3, "patience": 3, "checkpoint_every": 2}
+    return {"root": root, "cfg": cfg, "stats": stats, "stats_path": root / "dataset" / "stats.json",
+            "splits": root / "dataset" / "splits.csv", "model": model, "train": train,
+            "split_table": pd.read_csv(root / "dataset" / "splits.csv"),
+            "stats_json": json.dumps(stats)}

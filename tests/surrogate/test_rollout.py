@@ -1,0 +1,85 @@
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from generators import h5md
+from surrogate import rollout
+from surrogate.baseline import constant_velocity
+from surrogate.samples import load_sim
+from surrogate.simulator import LearnedSimulator
+
+pytestmark = pytest.mark.engine
+
+
+def simulator_and_sim(tiny, split="test"):
+    stats = json.loads(tiny["stats_json"])
+    table = tiny["split_table"]
+    torch.manual_seed(0)
+    path = table.loc[table["split"] == split, "path"].iloc[0]
+    return LearnedSimulator(stats, tiny["model"]).eval(), load_sim(path, stats)
+
+
+def test_rollout_keeps_kinematic_particles_exactly_on_the_data(tiny_dataset):
+    simulator, sim = simulator_and_sim(tiny_dataset)
+    result = rollout.rollout(simulator, sim)
+    kin = sim.kinematic.numpy()
+    assert result.first_nonfinite is None and result.n_predicted == sim.n_frames - 4
+    np.testing.assert_array_equal(result.position[:, kin], sim.position.numpy()[:, kin])
+    np.testing.assert_array_equal(result.position[:4], sim.position.numpy()[:4])      # history is the data's
+    assert not np.allclose(result.position[4:, ~kin], sim.position.numpy()[4:, ~kin])   # the rest is predicted
+
+
+def test_rollout_beyond_the_recorded_window_holds_kinematic_particles(tiny_dataset):
+    simulator, sim = simulator_and_sim(tiny_dataset)
+    result = rollout.rollout(simulator, sim, n_frames=sim.n_frames + 5)
+    kin = sim.kinematic.numpy()
+    assert result.position.shape[0] == sim.n_frames + 5
+    np.testing.assert_array_equal(result.position[-1, kin], sim.position.numpy()[-1, kin])
+
+
+def test_blown_up_rollout_is_reported_and_written_as_nan(tiny_dataset, tmp_path):
+    simulator, sim = simulator_and_sim(tiny_dataset)
+    with torch.no_grad():
+        simulator.acceleration_std.fill_(float("inf"))
+    result = rollout.rollout(simulator, sim)
+    assert result.first_nonfinite == 4 and np.isnan(result.position[4:]).all()
+    path = rollout.write(tmp_path / "r.h5", sim, result, "ckpt.pt", "abc")
+    back = h5md.read(path, allow_nonfinite=True)
+    assert back.parameters["rollout_first_nonfinite"] == 4
+    with pytest.raises(h5md.H5MDError, match="non-finite position at frame 4"):
+        h5md.read(path)
+
+
+def test_rollout_file_has_the_sims_layout(tiny_dataset, tmp_path):
+    simulator, sim = simulator_and_sim(tiny_dataset)
+    path = rollout.write(tmp_path / "r.h5", sim, rollout.rollout(simulator, sim), "ckpt.pt", "abc")
+    back = h5md.read(path)
+    assert back.position.shape == sim.traj.position.shape
+    np.testing.assert_array_equal(back.species, sim.traj.species)
+    np.testing.assert_array_equal(back.time, sim.traj.time)
+    assert back.parameters["rollout_checkpoint_sha"] == "abc" and back.parameters["scene"] == "slide"
+
+
+def test_constant_velocity_is_exact_for_uniform_motion():
+    t = np.arange(8)[:, None, None]
+    pos = np.array([[0.0, 0.0], [5.0, 1.0], [9.0, 9.0]])[None] + np.array([[1.0, 0.5], [-0.2, 0.0], [0, 0]]) * t
+    kin = np.array([False, False, True])
+    pos[:, 2] = [9.0, 9.0 + 0.0]
+    pred = constant_velocity(pos, kin, history=3)
+    np.testing.assert_allclose(pred, pos)
+    accelerating = pos + np.array([0.0, -0.1])[None, None] * t**2
+    accelerating[:, 2] = pos[:, 2]
+    pred = constant_velocity(accelerating, kin, history=3)
+    assert np.allclose(pred[:3], accelerating[:3]) and not np.allclose(pred[3:, :2], accelerating[3:, :2])
+    np.testing.assert_array_equal(pred[:, 2], accelerating[:, 2])
+
+
+def test_rollout_mse_is_mean_squared_euclidean_over_moving_particles():
+    truth = np.zeros((4, 3, 2))
+    pred = truth.copy()
+    pred[2:, 0] = [3.0, 4.0]               # 25 m^2 on particle 0
+    pred[2:, 2] = [100.0, 0.0]             # kinematic: not counted
+    mse = rollout.rollout_mse(pred, truth, np.array([True, True, False]), history=2)
+    np.testing.assert_allclose(mse, [12.5, 12.5])

@@ -1,0 +1,83 @@
+"""Training on a tiny real dataset: the loss falls, a stopped run resumes, divergence is named."""
+
+import json
+
+import pandas as pd
+import pytest
+import torch
+
+from surrogate import checkpoint, train
+from surrogate.samples import load_sim
+
+pytestmark = pytest.mark.engine
+
+
+def run(tiny, out, **kwargs):
+    return train.train(tiny["stats_path"], tiny["splits"], tiny["model"], tiny["train"], out, progress=False,
+                       **kwargs)
+
+
+def test_tiny_training_lowers_the_loss_and_keeps_the_best_checkpoint(tiny_dataset, tmp_path):
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "epochs": 20, "patience": 20, "lr": 3e-3}}
+    state = run(tiny, tmp_path)
+    history = pd.read_csv(tmp_path / "history.csv")
+    assert list(history["epoch"]) == list(range(1, 21)) and state["finished"]
+    assert history["train_loss"].iloc[-3:].mean() < 0.92 * history["train_loss"].iloc[0]
+    best = checkpoint.load(tmp_path / "best.pt")["json"]
+    assert best["valid_rollout_mse"] == pytest.approx(history["valid_rollout_mse"].min())
+    assert best["stats"] == tiny["stats"] and best["model"] == tiny["model"]   # carries what it was trained with
+
+
+def test_same_seed_reproduces_the_run(tiny_dataset, tmp_path):
+    run(tiny_dataset, tmp_path / "a")
+    run(tiny_dataset, tmp_path / "b")
+    a, b = pd.read_csv(tmp_path / "a" / "history.csv"), pd.read_csv(tmp_path / "b" / "history.csv")
+    pd.testing.assert_frame_equal(a.drop(columns="seconds"), b.drop(columns="seconds"))
+
+
+def test_stopped_run_resumes_with_the_step_count_and_the_uninterrupted_result(tiny_dataset, tmp_path):
+    whole = run(tiny_dataset, tmp_path / "whole")
+    stopped = run(tiny_dataset, tmp_path / "parts", max_steps=3)
+    assert stopped["step"] == 3 and not stopped["finished"]
+    resumed = run(tiny_dataset, tmp_path / "parts")
+    assert resumed["step"] == whole["step"]                       # continued, not restarted
+    a = pd.read_csv(tmp_path / "whole" / "history.csv").drop(columns="seconds")
+    b = pd.read_csv(tmp_path / "parts" / "history.csv").drop(columns="seconds")
+    pd.testing.assert_frame_equal(a, b)
+    wa = checkpoint.load(tmp_path / "whole" / "best.pt")["model"]
+    wb = checkpoint.load(tmp_path / "parts" / "best.pt")["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+
+
+def test_finished_run_is_not_resumed_but_restarted(tiny_dataset, tmp_path):
+    run(tiny_dataset, tmp_path)
+    again = run(tiny_dataset, tmp_path)
+    assert again["step"] == pd.read_csv(tmp_path / "history.csv")["step"].iloc[-1]
+    assert len(pd.read_csv(tmp_path / "history.csv")) == tiny_dataset["train"]["epochs"]
+
+
+def test_non_finite_loss_stops_training_naming_step_and_samples(tiny_dataset, tmp_path, monkeypatch):
+    real = train.batch_loss
+    calls = {"n": 0}
+
+    def poisoned(*args, **kwargs):
+        calls["n"] += 1
+        loss = real(*args, **kwargs)
+        return loss * float("nan") if calls["n"] == 3 else loss
+
+    monkeypatch.setattr(train, "batch_loss", poisoned)
+    with pytest.raises(train.TrainingDiverged, match=r"at step 3 \(epoch 1, batch 3\) on samples: slide_\d+ frame \d"):
+        run(tiny_dataset, tmp_path)
+
+
+def test_random_walk_noise_changes_the_target_consistently(tiny_dataset):
+    """With noise, the target still lands on the true next position (relative to the noisy last one)."""
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    split = tiny_dataset["split_table"]
+    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    g = torch.Generator().manual_seed(0)
+    clean = train.batch_loss(simulator, [sim], [(0, 3)], 0.0, g)
+    noisy = train.batch_loss(simulator, [sim], [(0, 3)], 0.05, torch.Generator().manual_seed(0))
+    assert torch.isfinite(clean) and torch.isfinite(noisy) and not torch.isclose(clean, noisy)

@@ -1,0 +1,15 @@
+# Stage rollout: the predicted trajectory of one test sim, same H5MD layout as the sims.
+rule rollout:
+    input:
+        checkpoint="results/{scene}/model/best.pt",
+        sim="results/{scene}/sims/{sim}.h5",
+    output:
+        "results/{scene}/rollouts/{sim}.h5",
+    threads: 1
+    log:
+        "results/{scene}/logs/rollout/{sim}.log",
+    benchmark:
+        "results/{scene}/benchmarks/rollout/{sim}.tsv"
+    shell:
+        "graphdem rollout --checkpoint {input.checkpoint} --data {input.sim} "
+        "--out-dir results/{wildcards.scene}/rollouts --threads {threads} > {log} 2>&1"

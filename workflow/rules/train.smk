@@ -1,0 +1,22 @@
+# Stage train: Graph-DEM on the train split, best checkpoint by validation rollout MSE.
+# last.pt (the full training state) is written beside the outputs but is not one of them, so
+# Snakemake never deletes it: rerunning an interrupted job continues where it stopped.
+rule train:
+    input:
+        stats="results/{scene}/dataset/stats.json",
+        splits="results/{scene}/dataset/splits.csv",
+        sims=all_sims,
+    output:
+        best="results/{scene}/model/best.pt",
+        history="results/{scene}/model/history.csv",
+    params:
+        model=model_config_json,
+        train=train_config_json,
+    threads: workflow.cores
+    log:
+        "results/{scene}/logs/train.log",
+    benchmark:
+        "results/{scene}/benchmarks/train.tsv"
+    shell:
+        "graphdem train --stats {input.stats} --splits {input.splits} --model-json {params.model:q} "
+        "--train-json {params.train:q} --out-dir results/{wildcards.scene}/model --threads {threads} > {log} 2>&1"
