@@ -1,5 +1,5 @@
 # Two commands for a fresh Debian 12 machine (root):
-#   make run    install everything, then build the main target (for now the slide dataset)
+#   make run    install everything, then build the main target results/slide/metrics.csv
 #   make test   install everything, then run the test suite
 # Both are idempotent: the install step is skipped when nothing it depends on changed.
 
@@ -8,8 +8,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.graphdem-installed
 APT_STAMP := $(VENV)/.graphdem-apt
-# The main target will be results/slide/metrics.csv once the surrogate stages exist.
-TARGET ?= results/slide/dataset/stats.json
+TARGET ?= results/slide/metrics.csv
 CORES ?= 2
 APT_PACKAGES := lammps yade python3-venv
 
@@ -34,7 +33,7 @@ $(STAMP): pyproject.toml $(APT_STAMP)
 	@touch $@
 
 run: install
-	@echo "[run] building $(TARGET) (the surrogate stages train/rollout/evaluate are not in the workflow yet: the run stops at the dataset)"
+	@echo "[run] building $(TARGET) with $(CORES) cores"
 	$(VENV)/bin/snakemake -c$(CORES) $(TARGET)
 
 test: install

@@ -46,6 +46,15 @@ def _generator(*seeds: int) -> torch.Generator:
     return torch.Generator().manual_seed(int(np.random.SeedSequence(list(seeds)).generate_state(1)[0]))
 
 
+def learning_rate(train_cfg: dict, step: int, total_steps: int) -> float:
+    """Adam's learning rate at ``step``: constant ``lr`` (the article), or an exponential decay from
+    ``lr`` to ``lr_final`` over the planned steps when ``lr_final`` is set."""
+    lr, final = float(train_cfg["lr"]), train_cfg.get("lr_final")
+    if final is None:
+        return lr
+    return lr * (float(final) / lr) ** min(step / max(total_steps, 1), 1.0)
+
+
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
                generator: torch.Generator) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch."""
@@ -157,7 +166,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
 
     def save_outputs() -> None:
         history = pd.DataFrame(state["history"], columns=[
-            "epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds"])
+            "epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr"])
         with atomic_path(out_dir / "history.csv") as tmp:
             history.to_csv(tmp, index=False)
         if best_weights is not None:
@@ -184,6 +193,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
                 raise TrainingDiverged(
                     f"non-finite training loss ({loss.item()}) at step {state['step'] + 1} (epoch {epoch + 1}, "
                     f"batch {b + 1}) on samples: {samples}; the last good state is in {last}")
+            for group in optimiser.param_groups:
+                group["lr"] = learning_rate(train_cfg, state["step"], epochs * n_batches)
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
@@ -214,7 +225,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             state["bad_epochs"] += 1
         state["seconds"] += time.perf_counter() - clock
         clock = time.perf_counter()
-        state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2)])
+        state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2),
+                                 optimiser.param_groups[0]["lr"]])
         log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
                  " (best)" if improved else "")
         state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)

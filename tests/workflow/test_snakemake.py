@@ -12,7 +12,7 @@ from generators import h5md
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
-TARGET = "results/slide/dataset/stats.json"
+TARGET = "results/slide/metrics.csv"
 SMALL = "slide={n_sims: 3, frames: 8, record_start: 0.5, settle_time: 4.0}"
 
 pytestmark = pytest.mark.engine
@@ -54,6 +54,32 @@ def test_dataset_stage_outputs(workdir):
         assert (res / "benchmarks" / "simulate" / f"{sim}.tsv").is_file()
         assert (res / "raw" / sim / "in.lammps").is_file() and (res / "raw" / sim / "log.lammps").is_file()
     assert len(list((res / "packings").iterdir())) == 1        # one packing shared by all sims
+
+
+def test_surrogate_stage_outputs(workdir):
+    import pandas as pd
+    res = workdir / "results" / "slide"
+    history = pd.read_csv(res / "model" / "history.csv")
+    assert len(history) == 2 and (res / "model" / "best.pt").is_file() and (res / "model" / "last.pt").is_file()
+    test_ids = pd.read_csv(res / "dataset" / "splits.csv").query("split == 'test'")["id"]
+    for sim in test_ids:
+        rolled = h5md.read(res / "rollouts" / f"{sim}.h5", allow_nonfinite=True)
+        assert rolled.parameters["rollout_history"] == 6 and rolled.n_frames == 8
+        assert (res / "benchmarks" / "rollout" / f"{sim}.tsv").is_file()
+    metrics = pd.read_csv(res / "metrics.csv")
+    overall = metrics[metrics["sim"] == "all"]
+    assert {"rollout MSE", "Slide Num", "Max Ht", "Mean Ht", "Tongue Dis", "Dis"} <= set(overall["metric"])
+    steps = pd.read_csv(res / "metrics_per_step.csv")
+    assert set(steps["tau"]) == {1, 2}
+    assert (res / "plots" / "rollout.gif").stat().st_size > 10_000
+    for stage in ("train", "evaluate"):
+        assert (res / "benchmarks" / f"{stage}.tsv").is_file() and (res / "logs" / f"{stage}.log").is_file()
+
+
+def test_changed_learning_rate_retrains_but_reruns_no_engine(workdir):
+    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", train: {lr: 0.001}}",)))
+    assert jobs.get("train") == 1 and jobs.get("evaluate") == 1
+    assert not {"prepare", "simulate", "convert", "dataset"} & set(jobs)
 
 
 def test_unchanged_rerun_does_nothing(workdir):

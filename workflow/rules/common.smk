@@ -29,8 +29,13 @@ def _json(value) -> str:
     return json.dumps(value, sort_keys=True)
 
 
+# Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
+SURROGATE_KEYS = ("model", "train", "evaluate")
+
+
 def scene_config_json(wildcards) -> str:
-    return _json(CFG[wildcards.scene])
+    """The scene's DEM and sweep settings (what the sweep table depends on)."""
+    return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in SURROGATE_KEYS})
 
 
 def sim_ids(scene: str) -> list[str]:
