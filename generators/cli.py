@@ -221,7 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
                        description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
-                                   "rollout MSE per sim and overall, and the scene's metrics (docs/metrics.md) "
+                                   "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
                                    "where the scene is known, beside a constant-velocity baseline.")
     _checkpoint_and_data(p)
     p.add_argument("--history", type=int, required=True, help="K, the history length the checkpoint takes")

@@ -1,4 +1,4 @@
-"""Evaluation (docs/metrics.md): rollout MSE and the scene metrics of truth, Graph-DEM and the
+"""Evaluation (docs/surrogate.md): rollout MSE and the scene metrics of truth, Graph-DEM and the
 constant-velocity baseline, computed by the same code, written to metrics.csv and
 metrics_per_step.csv with the checkpoint, config and code version they came from."""
 

@@ -60,7 +60,7 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None) 
 
 
 def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, history: int) -> np.ndarray:
-    """Per predicted frame: mean over moving particles of the squared Euclidean error (metrics.md)."""
+    """Per predicted frame: mean over moving particles of the squared Euclidean error (docs/surrogate.md)."""
     err = np.asarray(predicted, np.float64)[history:, moving] - np.asarray(truth, np.float64)[history:, moving]
     return (err**2).sum(axis=-1).mean(axis=-1)
 

@@ -78,7 +78,7 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
 
 
 def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
-    """Mean over sims of the rollout MSE (metrics.md); a rollout that blows up scores +inf."""
+    """Mean over sims of the rollout MSE (docs/surrogate.md); a rollout that blows up scores +inf."""
     simulator.eval()
     values = []
     for sim in sims:

@@ -1,4 +1,4 @@
-"""Evaluation metrics (docs/metrics.md): one function per scene, applied alike to truth and prediction."""
+"""Evaluation metrics (docs/surrogate.md): one function per scene, applied alike to truth and prediction."""
 
 from surrogate.metrics.accuracy import accuracy
 from surrogate.metrics.slide import SlideMetrics

@@ -1,4 +1,4 @@
-"""Landslide metrics (article Table 3, docs/metrics.md)."""
+"""Landslide metrics (article Table 3, docs/surrogate.md)."""
 
 from __future__ import annotations
 

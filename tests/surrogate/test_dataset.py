@@ -37,6 +37,7 @@ def test_stats_come_from_train_split_only(tmp_path):
     assert stats["dim"] == 2 and stats["n_types"] == 2 and stats["kinematic_species"] == [0]
     assert stats["frame_interval"] == pytest.approx(0.5)
     assert stats["connectivity_radius"] == 2.5
+    assert stats["property_stats"]["radius"]["mean"] == pytest.approx(0.4)      # moving train particles
     written = json.loads((tmp_path / "out" / "stats.json").read_text())
     assert written["velocity_mean"] == stats["velocity_mean"]
     splits = pd.read_csv(tmp_path / "out" / "splits.csv")

@@ -1,4 +1,4 @@
-# Stage evaluate: scene metrics and rollout MSE of Graph-DEM and of constant velocity (docs/metrics.md).
+# Stage evaluate: scene metrics and rollout MSE of Graph-DEM and of constant velocity (docs/surrogate.md).
 rule evaluate:
     input:
         checkpoint="results/{scene}/model/best.pt",
