@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import pickle
 import sys
 from pathlib import Path
 
@@ -134,6 +135,12 @@ def cmd_evaluate(args) -> None:
                             f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)")
 
 
+def cmd_import_solidgn(args) -> None:
+    from generators.solidgn import convert
+    table = convert.import_dataset(args.src, args.dest, progress=not args.no_progress)
+    print(f"{args.dest}: {len(table)} sims, splits {table['split'].value_counts().to_dict()}")
+
+
 def cmd_inspect(args) -> None:
     from generators import h5md
     for path in args.files:
@@ -234,6 +241,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_evaluate)
 
+    p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
+                       description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "
+                                   "trajectories) into DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are "
+                                   "read with an unpickler that admits numpy arrays and nothing else.")
+    p.add_argument("src", type=Path)
+    p.add_argument("dest", type=Path)
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_import_solidgn)
+
     p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
     p.set_defaults(func=cmd_inspect)
@@ -251,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args.func(args)
     except (gconfig.ConfigError, h5md.H5MDError, stability.BlowUp, contact.UnstableTimeStep,
-            runner.LammpsError, lammps_io.LammpsOutputError, CheckpointError, TrainingDiverged,
+            runner.LammpsError, lammps_io.LammpsOutputError, CheckpointError, TrainingDiverged, pickle.UnpicklingError,
             FileNotFoundError, ValueError) as exc:
         print(f"graphdem {args.command}: error: {exc}", file=sys.stderr)
         return 1

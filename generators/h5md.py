@@ -95,8 +95,11 @@ class Trajectory:
             raise H5MDError(f"{where}: frame times are not strictly increasing")
         if np.asarray(self.kinematic).dtype != bool:
             raise H5MDError(f"{where}: kinematic mask must be boolean, got {np.asarray(self.kinematic).dtype}")
-        if np.any(np.asarray(self.radius) <= 0) or np.any(np.asarray(self.mass) <= 0):
-            raise H5MDError(f"{where}: radius and mass must be positive")
+        moving = ~np.asarray(self.kinematic, bool)
+        if np.any(np.asarray(self.radius) <= 0) or np.any(np.asarray(self.mass)[moving] <= 0):
+            raise H5MDError(f"{where}: radius, and the mass of moving particles, must be positive")
+        if np.any(np.asarray(self.mass) < 0):
+            raise H5MDError(f"{where}: mass must not be negative (0 marks a kinematic particle of infinite mass)")
         if not np.all(np.asarray(self.box_upper) > np.asarray(self.box_lower)):
             raise H5MDError(f"{where}: box upper corner must exceed lower corner")
         if self.boundary and len(self.boundary) != d:

@@ -1,0 +1,96 @@
+"""Convert a Solid-GN dataset folder (``train/``, ``valid/``, ``test/`` of pickles plus
+``metadata.json``) into H5MD sims and a split table.
+
+Particle type 0 is the fixed wall: kinematic, never predicted. Types 1 and 2 are soil. Every
+particle keeps its radius (Slide-Small has heterogeneous radii; the model can take it as the
+node property f_i). Frames are numbered; their times are frame index x the metadata's ``dt``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from generators import h5md
+from generators.atomic import atomic_path
+from generators.solidgn.safe_pickle import load
+
+SPLITS = ("train", "valid", "test")
+SCENE = "solidgn"
+
+
+def _array(data: dict, key: str, path: Path, ndim: int) -> np.ndarray:
+    if key not in data:
+        raise ValueError(f"{path}: missing array {key!r}; a Solid-GN trajectory has particle_type, particle_r, "
+                         f"particle_m and position")
+    value = data[key]
+    if not isinstance(value, np.ndarray) or value.ndim != ndim:
+        raise ValueError(f"{path}: {key} must be a {ndim}-dimensional numpy array, got "
+                         f"{type(value).__name__} of shape {getattr(value, 'shape', None)}")
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"{path}: {key} has non-finite values")
+    return value
+
+
+def trajectory(path: Path, metadata: dict, name: str) -> h5md.Trajectory:
+    """One Solid-GN pickle as a validated H5MD trajectory."""
+    data = load(path)
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a dict of arrays, got {type(data).__name__}")
+    position = _array(data, "position", path, 3)
+    types = _array(data, "particle_type", path, 1)
+    radius = _array(data, "particle_r", path, 1)
+    mass = _array(data, "particle_m", path, 1)
+    t, n, d = position.shape
+    if d != metadata["dim"] or any(len(a) != n for a in (types, radius, mass)):
+        raise ValueError(f"{path}: position has shape {position.shape} but particle_type/r/m have "
+                         f"{len(types)}/{len(radius)}/{len(mass)} entries and the metadata's dim is {metadata['dim']}")
+    if not np.array_equal(types, np.round(types)) or types.min() < 0:
+        raise ValueError(f"{path}: particle_type must hold non-negative integers")
+    bounds = np.asarray(metadata["bounds"], float)
+    kinematic = types == 0
+    return h5md.Trajectory(
+        position=position.astype(np.float32), time=np.arange(t) * float(metadata["dt"]), step=np.arange(t),
+        species=types.astype(np.int32), radius=radius, mass=mass, kinematic=kinematic,
+        box_lower=bounds[:, 0], box_upper=bounds[:, 1], boundary=("none",) * d,
+        parameters={"scene": SCENE, "dataset": name, "source_file": str(path), "units": "m (Solid-GN)",
+                    "frame_interval": float(metadata["dt"]), "connectivity_radius":
+                    float(metadata.get("default_connectivity_radius", np.nan)),
+                    "species_names": {"0": "fixed wall", "1": "soil type 1", "2": "soil type 2"},
+                    "solidgn_metadata": metadata})
+
+
+def _number(path: Path) -> tuple[int, str]:
+    match = re.match(r"(\d+)$", path.stem)
+    return (int(match[1]) if match else 10**9, path.stem)
+
+
+def import_dataset(src: str | Path, dest: str | Path, progress: bool = True) -> pd.DataFrame:
+    """Convert every split found in ``src``; write ``dest/sims/<split>_<n>.h5`` and ``dest/splits.csv``."""
+    src, dest = Path(src), Path(dest)
+    meta_path = src / "metadata.json"
+    if not meta_path.is_file():
+        raise FileNotFoundError(f"{src}: no metadata.json; expected a Solid-GN dataset folder "
+                                f"(metadata.json and train/, valid/, test/ of .pkl files)")
+    metadata = json.loads(meta_path.read_text())
+    rows = []
+    for split in SPLITS:
+        files = sorted((src / split).glob("*.pkl"), key=_number) if (src / split).is_dir() else []
+        for path in tqdm(files, desc=f"import {src.name}/{split}", unit="sim", disable=not progress):
+            sim_id = f"{split}_{_number(path)[1]}"
+            out = dest / "sims" / f"{sim_id}.h5"
+            h5md.write(out, trajectory(path, metadata, src.name))
+            rows.append({"id": sim_id, "split": split, "path": str(out), "source": str(path)})
+    if not any(r["split"] == "train" for r in rows):
+        raise FileNotFoundError(f"{src}: no train/*.pkl files")
+    table = pd.DataFrame(rows)
+    with atomic_path(dest / "splits.csv") as tmp:
+        table.to_csv(tmp, index=False)
+    with atomic_path(dest / "metadata.json") as tmp:
+        tmp.write_text(json.dumps(metadata, indent=2))
+    return table
