@@ -136,6 +136,8 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
                                           values[history:], history))
             for name, values in metrics.compare(prediction, truth).items():
                 per_step.append(_per_step(scene, method, sim.id, name, traj.time, None, values[history:], history))
+    if not sims:
+        raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)
     table = summarise(steps)
     timing = pd.DataFrame([{"scene": table["scene"].iloc[0], "method": MODEL, "metric": SECONDS, "sim": "all",
@@ -159,7 +161,7 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
     order = list(dict.fromkeys(steps["metric"]))
     for (method, metric), group in steps.groupby(["method", "metric"], sort=False):
         scene = group["scene"].iloc[0]
-        per_sim = group.groupby("sim", sort=False)["prediction"].mean()     # NaN stays NaN: nothing skipped
+        per_sim = group.groupby("sim", sort=False)["prediction"].mean(skipna=False)   # a blow-up stays NaN
         base = {"scene": scene, "method": method, "metric": metric, "n_sims": int(group["sim"].nunique()),
                 "n_frames": int(len(group))}
         if metric == MSE:
@@ -172,11 +174,17 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
                              "n_sims": 1, "n_frames": int((group["sim"] == sim).sum()),
                              "n_blown_up": int(np.isnan(value))})
         elif group["truth"].notna().any():
-            acc, left_out = accuracy(group["truth"].to_numpy(), group["prediction"].to_numpy())
-            rows.append({**base, "sim": "all", "acc_percent": acc, "mean_truth": float(group["truth"].mean()),
-                         "mean_prediction": float(group["prediction"].mean()), "n_frames_left_out": left_out})
+            truth, prediction = group["truth"].to_numpy(), group["prediction"].to_numpy()
+            acc, left_out = accuracy(truth, prediction)
+            kept = np.isfinite(truth) & (truth != 0)          # the frames Acc averages over
+            rows.append({**base, "sim": "all", "acc_percent": acc, "mean_truth": float(truth[kept].mean()),
+                         "mean_prediction": float(prediction[kept].mean()), "n_frames_left_out": left_out})
         else:
-            rows.append({**base, "sim": "all", "mean_prediction": float(group["prediction"].mean(skipna=False))})
+            # Dis: NaN where the true body is empty (left out, counted), +inf where the prediction blew up
+            values = group["prediction"].to_numpy()
+            defined = ~np.isnan(values)
+            rows.append({**base, "sim": "all", "mean_prediction": float(values[defined].mean()) if defined.any()
+                         else float("nan"), "n_frames_left_out": int((~defined).sum())})
     columns = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
                "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims"]
     table = pd.DataFrame(rows).reindex(columns=columns)
@@ -189,7 +197,9 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
 def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
     """Per method, metric and tau: truth and prediction averaged over sims (``sim = all`` rows)."""
     keys = ["scene", "method", "metric", "tau", "frame"]
-    mean = steps.groupby(keys, sort=False)[["time", "truth", "prediction"]].mean().reset_index()
+    grouped = steps.groupby(keys, sort=False)
+    mean = grouped[["time", "truth"]].mean().reset_index()                   # truth NaN: no body, skipped
+    mean["prediction"] = grouped["prediction"].mean(skipna=False).to_numpy()  # a blow-up stays visible
     mean.insert(2, "sim", "all")
     return mean
 

@@ -28,7 +28,9 @@ class Rollout:
 
     @property
     def n_predicted(self) -> int:
-        return self.position.shape[0] - self.history
+        """Frames the model computed (up to and including a first non-finite one)."""
+        end = self.position.shape[0] if self.first_nonfinite is None else self.first_nonfinite + 1
+        return end - self.history
 
 
 @torch.inference_mode()

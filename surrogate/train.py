@@ -118,7 +118,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
     if train_cfg.get("valid_sims"):
         valid_paths = valid_paths[: int(train_cfg["valid_sims"])]
     if not valid_paths:
-        log.warning("the valid split is empty: the best checkpoint is chosen by training loss")
+        raise ValueError(f"{splits_csv}: the valid split is empty: the best checkpoint is chosen by validation "
+                         f"rollout error, so at least one valid sim is needed")
     train_sims = [load_sim(p, stats, props) for p in tqdm(train_paths, desc="load train", disable=not progress)]
     valid_sims = [load_sim(p, stats, props) for p in valid_paths]
     k = int(model_cfg["history"])
@@ -132,7 +133,9 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
     simulator = LearnedSimulator(stats, model_cfg)
     optimiser = torch.optim.Adam(simulator.parameters(), lr=float(train_cfg["lr"]))
     state = {"epoch": 0, "batch": 0, "step": 0, "history": [], "best_mse": math.inf, "best_epoch": -1,
-             "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0}
+             "best_step": 0, "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0,
+             # the learning-rate schedule is fixed when a run starts, so a resumed run follows it exactly
+             "total_steps": int(train_cfg["epochs"]) * n_batches}
     best_weights = None
     last = out_dir / "last.pt"
     if last.exists() and not fresh:
@@ -172,7 +175,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
         if best_weights is not None:
             checkpoint.save(out_dir / "best.pt", {"model": best_weights, "json": {
                 "model": model_cfg, "train": train_cfg, "stats": stats, "epoch": state["best_epoch"],
-                "valid_rollout_mse": state["best_mse"], "step": state["step"]}})
+                "valid_rollout_mse": state["best_mse"], "step": state["best_step"]}})
 
     epochs, patience = int(train_cfg["epochs"]), int(train_cfg["patience"])
     every = int(train_cfg["checkpoint_every"])
@@ -194,7 +197,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
                     f"non-finite training loss ({loss.item()}) at step {state['step'] + 1} (epoch {epoch + 1}, "
                     f"batch {b + 1}) on samples: {samples}; the last good state is in {last}")
             for group in optimiser.param_groups:
-                group["lr"] = learning_rate(train_cfg, state["step"], epochs * n_batches)
+                group["lr"] = learning_rate(train_cfg, state["step"], state["total_steps"])
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
@@ -216,10 +219,12 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
                 save_last()
         bar.close()
         train_loss = state["loss_sum"] / max(state["loss_count"], 1)
-        valid = validation_mse(simulator, valid_sims) if valid_sims else train_loss
-        improved = valid < state["best_mse"]
+        valid = validation_mse(simulator, valid_sims)
+        # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
+        improved = valid < state["best_mse"] or state["best_epoch"] == -1
         if improved:
             state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
+            state["best_step"] = state["step"]
             best_weights = {k: v.detach().clone() for k, v in simulator.state_dict().items()}
         else:
             state["bad_epochs"] += 1
@@ -235,8 +240,11 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             state["finished"] = True
         if state["epoch"] >= epochs:
             state["finished"] = True
+        save_outputs()          # outputs first: a kill in between never leaves a finished state without them
         save_last()
-        save_outputs()
     if best_weights is None:
-        raise ValueError("training ended before any epoch completed: no best checkpoint")
+        raise ValueError(f"no epoch was completed (epochs = {epochs}): no best checkpoint")
+    if not math.isfinite(state["best_mse"]):
+        log.warning("every validation rollout blew up: best.pt holds epoch %d only because it came first",
+                    state["best_epoch"])
     return state

@@ -63,12 +63,20 @@ class SlideMetrics:
         return out
 
     def compare(self, predicted: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
-        """Per frame: Dis, the sum over the *true* body of |p_pred - p_true| (m), and its mean."""
+        """Per frame: Dis, the sum over the *true* body of |p_pred - p_true| (m), and its mean.
+
+        NaN where the true body is empty (undefined, as the heights), +inf where a moving particle's
+        predicted position is non-finite (a blow-up is an infinite error, never a missing one).
+        """
+        predicted = np.asarray(predicted, np.float64)
         body = self.body(truth)
-        dist = np.linalg.norm(np.asarray(predicted, np.float64) - np.asarray(truth, np.float64), axis=-1)
-        total = np.where(body, dist, 0.0).sum(axis=1)
-        total[~np.isfinite(np.where(body, dist, 0.0)).all(axis=1)] = np.nan
+        dist = np.linalg.norm(predicted - np.asarray(truth, np.float64), axis=-1)
         count = body.sum(axis=1)
+        total = np.where(body, dist, 0.0).sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+            mean = total / np.maximum(count, 1)
+        broken = ~np.isfinite(predicted[:, ~np.asarray(self.kinematic, bool)]).all(axis=(1, 2))
+        for values in (total, mean):
+            values[count == 0] = np.nan
+            values[broken] = np.inf
         return {"Dis": total, "Dis mean": mean}

@@ -60,3 +60,17 @@ def test_wrong_history_is_refused_with_the_right_value(tiny_dataset, trained, tm
     assert code == 1
     assert "trained with a history of K = 4 frames; --history 6 does not match" in capsys.readouterr().err
     assert not (tmp_path / "m.csv").exists()
+
+
+def test_a_rollout_that_blows_up_midway_counts_and_is_named():
+    from surrogate.evaluate import MSE, mean_per_step, summarise
+    steps = pd.DataFrame({"scene": "slide", "method": "graphdem", "metric": MSE, "sim": ["a"] * 3 + ["b"] * 3,
+                          "tau": [1, 2, 3] * 2, "frame": [6, 7, 8] * 2, "time": [1.0, 1.2, 1.4] * 2,
+                          "truth": np.nan, "prediction": [0.1, 0.2, 0.3, 0.1, np.nan, np.nan]})
+    table = summarise(steps)
+    overall = table[table["sim"] == "all"].iloc[0]
+    assert np.isnan(overall["mse"]) and overall["n_blown_up"] == 1 and overall["blown_up_sims"] == "b"
+    per_sim = table[table["sim"] != "all"].set_index("sim")["mse"]
+    assert per_sim["a"] == pytest.approx(0.2) and np.isnan(per_sim["b"])
+    mean = mean_per_step(steps)
+    assert mean["prediction"].iloc[0] == pytest.approx(0.1) and mean["prediction"].iloc[1:].isna().all()
