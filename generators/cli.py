@@ -260,8 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     from generators import contact, h5md, stability
     from generators.lammps import io as lammps_io
     from generators.lammps import runner
-    from surrogate.checkpoint import CheckpointError
-    from surrogate.train import TrainingDiverged
+    from surrogate.errors import CheckpointError, TrainingDiverged
 
     args = build_parser().parse_args(argv)
     try:

@@ -13,11 +13,10 @@ from pathlib import Path
 import torch
 
 from generators.atomic import atomic_path
+from surrogate.errors import CheckpointError
 from surrogate.simulator import LearnedSimulator
 
-
-class CheckpointError(ValueError):
-    """A checkpoint is missing, unreadable, or does not match what it is used with."""
+__all__ = ["CheckpointError", "digest", "load", "save", "simulator_from"]
 
 
 def save(path: Path, payload: dict) -> None:

@@ -27,6 +27,7 @@ from tqdm import tqdm
 
 from generators.atomic import atomic_path
 from surrogate import checkpoint
+from surrogate.errors import TrainingDiverged
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim, load_sim, sample_index
@@ -36,10 +37,6 @@ log = logging.getLogger("graphdem.train")
 
 # Settings that may change between an interrupted run and its continuation.
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
-
-
-class TrainingDiverged(RuntimeError):
-    """The loss became non-finite; the message names the step and the samples."""
 
 
 def _generator(*seeds: int) -> torch.Generator:
@@ -206,7 +203,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             state["loss_sum"] += loss.item()
             state["loss_count"] += 1
             steps_this_call += 1
-            bar.set_postfix(loss=f"{state['loss_sum'] / state['loss_count']:.4g}")
+            bar.set_postfix(loss=f"{state['loss_sum'] / state['loss_count']:.4g}", refresh=False)
             if max_steps is not None and steps_this_call >= max_steps:
                 state["seconds"] += time.perf_counter() - clock
                 save_last()
