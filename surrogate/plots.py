@@ -42,7 +42,8 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str) -> Path:
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(metrics):]:
         ax.set_visible(False)
-    axes.flat[0].legend(fontsize=8)
+    handles = [plt.Line2D([], [], **STYLE[k]) for k in ("truth", *dict.fromkeys(mean["method"])) if k in STYLE]
+    fig.legend(handles=handles, loc="lower right", fontsize=9, frameon=False)
     fig.suptitle(title)
     path = Path(path)
     with atomic_path(path) as tmp:

@@ -77,7 +77,7 @@ def test_surrogate_stage_outputs(workdir):
 
 
 def test_changed_learning_rate_retrains_but_reruns_no_engine(workdir):
-    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", train: {lr: 0.001}}",)))
+    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", train: {lr: 0.005}}",)))
     assert jobs.get("train") == 1 and jobs.get("evaluate") == 1
     assert not {"prepare", "simulate", "convert", "dataset"} & set(jobs)
 
