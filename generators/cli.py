@@ -130,9 +130,10 @@ def cmd_evaluate(args) -> None:
         pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
         if pick is not None and pick.truth.shape[-1] == 2:
             t = pick.traj
+            names = {int(k): v for k, v in dict(t.parameters.get("species_names") or {}).items()}
             plots.animation(Path(args.plots) / "rollout.gif", pick.truth, pick.predictions[evaluate.MODEL], t.radius,
                             t.species, t.time, t.box_lower, t.box_upper, args.history,
-                            f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)")
+                            f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)", names)
 
 
 def cmd_import_solidgn(args) -> None:

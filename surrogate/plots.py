@@ -54,10 +54,11 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str) -> Path:
 
 def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.ndarray, species: np.ndarray,
               time: np.ndarray, lower: np.ndarray, upper: np.ndarray, history: int, title: str,
-              fps: int = 4) -> Path:
+              labels: dict[int, str] | None = None, fps: int = 4) -> Path:
     """GIF (Pillow, no external binary) of a 2D sim: DEM truth and Graph-DEM side by side."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, constrained_layout=True)
-    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=f"species {k}")
+    labels = labels or {}
+    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=labels.get(k, f"species {k}"))
                for k, c in SPECIES_COLOURS.items() if k in set(np.asarray(species).tolist())]
 
     def draw(frame: int):
