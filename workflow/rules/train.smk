@@ -12,7 +12,7 @@ rule train:
     params:
         model=model_config_json,
         train=train_config_json,
-    threads: workflow.cores
+    threads: 64  # Snakemake caps this at --cores: training takes every core it is given
     log:
         "results/{scene}/logs/train.log",
     benchmark:
