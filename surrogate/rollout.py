@@ -8,11 +8,12 @@ first bad frame is reported, never hidden.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
 
+from generators import h5md
 from surrogate.samples import Sim
 from surrogate.simulator import LearnedSimulator, build_graph
 
@@ -69,10 +70,6 @@ def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, hi
 
 def write(path, sim: Sim, result: Rollout, checkpoint_path, checkpoint_sha: str):
     """The predicted trajectory as H5MD, same layout as the sim, with the rollout's provenance."""
-    from dataclasses import replace
-
-    from generators import h5md
-
     params = dict(sim.traj.parameters)
     params.update(source_sim=str(sim.path), rollout_checkpoint=str(checkpoint_path),
                   rollout_checkpoint_sha=checkpoint_sha, rollout_history=result.history,
