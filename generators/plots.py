@@ -24,6 +24,14 @@ def draw_discs(ax, xy: np.ndarray, radius: np.ndarray, species: np.ndarray, alph
                                         edgecolors="none", alpha=alpha))
 
 
+def frame_axes(ax, lower: np.ndarray, upper: np.ndarray) -> None:
+    """Axes of a 2D particle picture: the domain, to scale, in metres."""
+    ax.set_xlim(lower[0], upper[0])
+    ax.set_ylim(lower[1], upper[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+
+
 def first_last(path: str | Path, position: np.ndarray, radius: np.ndarray, species: np.ndarray,
                time: np.ndarray, lower: np.ndarray, upper: np.ndarray, title: str,
                labels: dict[int, str] | None = None) -> Path:
@@ -31,10 +39,7 @@ def first_last(path: str | Path, position: np.ndarray, radius: np.ndarray, speci
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True, constrained_layout=True)
     for ax, frame in zip(axes, (0, len(position) - 1), strict=True):
         draw_discs(ax, position[frame], radius, species)
-        ax.set_xlim(lower[0], upper[0])
-        ax.set_ylim(lower[1], upper[1])
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (m)")
+        frame_axes(ax, lower, upper)
         ax.set_title(f"frame {frame}, t = {time[frame]:.2f} s")
     axes[0].set_ylabel("y (m)")
     if labels:

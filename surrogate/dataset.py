@@ -44,6 +44,16 @@ class _Moments:
         return np.sqrt(self.m2 / max(self.n, 1))
 
 
+def property_values(traj: h5md.Trajectory, name: str) -> np.ndarray:
+    """Per-particle values of a node property: ``radius`` or a column of the H5MD properties."""
+    if name == "radius":
+        return np.asarray(traj.radius, np.float64)
+    if name in traj.property_names:
+        return np.asarray(traj.properties, np.float64)[:, traj.property_names.index(name)]
+    raise ValueError(f"node property {name!r} is not in the data: allowed 'radius' or one of "
+                     f"{list(traj.property_names) or 'no stored properties'}")
+
+
 def split_table(sweep: pd.DataFrame, sims_dir: Path) -> pd.DataFrame:
     return pd.DataFrame({"id": sweep["id"], "split": sweep["split"],
                          "path": [str(Path(sims_dir) / f"{i}.h5") for i in sweep["id"]]})
@@ -72,11 +82,8 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         v = np.diff(p, axis=0)
         vel.add(v)
         acc.add(np.diff(v, axis=0))
-        columns = {"radius": np.asarray(traj.radius, np.float64)}
-        for j, name in enumerate(traj.property_names):
-            columns[name] = np.asarray(traj.properties, np.float64)[:, j]
-        for name, values in columns.items():
-            props.setdefault(name, _Moments(1)).add(values[moving])
+        for name in ("radius", *traj.property_names):
+            props.setdefault(name, _Moments(1)).add(property_values(traj, name)[moving])
         species.update(np.unique(traj.species).tolist())
         kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
     floor = 1e-12

@@ -13,7 +13,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from generators.atomic import atomic_path  # noqa: E402
-from generators.plots import SPECIES_COLOURS, draw_discs  # noqa: E402
+from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes  # noqa: E402
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
@@ -66,10 +66,7 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
             ax.clear()
             finite = np.isfinite(pos[frame]).all(axis=1)
             draw_discs(ax, pos[frame][finite], np.asarray(radius)[finite], np.asarray(species)[finite])
-            ax.set_xlim(lower[0], upper[0])
-            ax.set_ylim(lower[1], upper[1])
-            ax.set_aspect("equal")
-            ax.set_xlabel("x (m)")
+            frame_axes(ax, lower, upper)
             stage = "history (data)" if frame < history else f"predicted step {frame - history + 1}"
             ax.set_title(f"{name}: t = {time[frame]:.2f} s, {stage}", fontsize=9)
         axes[0].set_ylabel("y (m)")

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 
 from generators import h5md
+from surrogate.dataset import property_values
 
 
 @dataclass
@@ -30,16 +31,6 @@ class Sim:
     @property
     def n_frames(self) -> int:
         return int(self.position.shape[0])
-
-
-def property_values(traj: h5md.Trajectory, name: str) -> np.ndarray:
-    """Per-particle values of a node property: ``radius`` or a column of the H5MD properties."""
-    if name == "radius":
-        return np.asarray(traj.radius, np.float64)
-    if name in traj.property_names:
-        return np.asarray(traj.properties, np.float64)[:, traj.property_names.index(name)]
-    raise ValueError(f"node property {name!r} is not in the data: allowed 'radius' or one of "
-                     f"{list(traj.property_names) or 'no stored properties'}")
 
 
 def normalised_properties(traj: h5md.Trajectory, names: list[str], stats: dict) -> torch.Tensor | None:
