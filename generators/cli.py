@@ -15,6 +15,7 @@ from pathlib import Path
 from generators import config as gconfig
 
 SCENES = ("slide",)
+BENCHMARKS = ("slide_samer", "slide_small")
 
 
 def _json(text: str) -> dict:
@@ -67,12 +68,19 @@ def cmd_convert(args) -> None:
 
 
 def cmd_dataset(args) -> None:
+    import pandas as pd
+
     from generators import h5md, plots
     from surrogate import dataset
-    stats = dataset.build(Path(args.sweep), Path(args.sims), Path(args.out_dir), args.connectivity_radius)
+    if args.splits is not None:
+        table = pd.read_csv(args.splits)
+    elif args.sweep is not None and args.sims is not None:
+        table = dataset.split_table(pd.read_csv(args.sweep), Path(args.sims))
+    else:
+        raise SystemExit("graphdem dataset: give either --splits, or both --sweep and --sims")
+    stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius)
     print(json.dumps(stats, indent=2))
     if args.plot:
-        import pandas as pd
         splits = pd.read_csv(Path(args.out_dir) / "splits.csv")
         first = splits[splits["split"] == "train"].iloc[0]
         traj = h5md.read(first["path"])
@@ -116,17 +124,31 @@ def cmd_rollout(args) -> None:
 
 
 def cmd_evaluate(args) -> None:
+    import pandas as pd
+
     from surrogate import evaluate, plots
     _logging()
-    table, steps, sims = evaluate.evaluate(args.checkpoint, args.data, args.history, rollouts_dir=args.rollouts,
+    if (args.data is None) == (args.splits is None):
+        raise SystemExit("graphdem evaluate: give either --data (H5MD files or folders) or --splits (a split table)")
+    if args.splits is not None:
+        split, data, note = evaluate.evaluation_split(pd.read_csv(args.splits), args.split)
+    else:
+        if args.split == "auto":
+            raise SystemExit("graphdem evaluate: --split auto needs --splits; with --data name the split "
+                             "(test or valid)")
+        split, data, note = args.split, args.data, ""
+    if note:
+        print(f"NOTE: {note}")
+    table, steps, sims = evaluate.evaluate(args.checkpoint, data, args.history, rollouts_dir=args.rollouts,
                                            body_displacement=args.body_displacement, threads=args.threads,
-                                           progress=not args.no_progress)
+                                           progress=not args.no_progress, split=split, split_note=note)
     evaluate.write(table, steps, args.out, args.per_step)
     print(evaluate.report(table))
     if args.plots:
         scene = str(table["scene"].iloc[0])
         plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
-                                  f"{scene}: mean over {len(sims)} test sims")
+                                  f"{scene}: mean over {len(sims)} {split} sims, K = {args.history}"
+                                  + (" (no test split: valid)" if note else ""))
         pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
         if pick is not None and pick.truth.shape[-1] == 2:
             t = pick.traj
@@ -136,9 +158,24 @@ def cmd_evaluate(args) -> None:
                             f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)", names)
 
 
+def cmd_combine(args) -> None:
+    from generators.atomic import atomic_path
+    from surrogate.evaluate import combine
+    table = combine(args.tables)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
+
+
 def cmd_import_solidgn(args) -> None:
     from generators.solidgn import convert
-    table = convert.import_dataset(args.src, args.dest, progress=not args.no_progress)
+    limits = {}
+    for item in args.limit or []:
+        split, _, count = item.partition("=")
+        if not count.isdigit() or int(count) < 1:
+            raise SystemExit(f"graphdem import-solidgn: --limit {item!r}: expected SPLIT=N with N >= 1")
+        limits[split] = int(count)
+    table = convert.import_dataset(args.src, args.dest, progress=not args.no_progress, limits=limits)
     print(f"{args.dest}: {len(table)} sims, splits {table['split'].value_counts().to_dict()}")
 
 
@@ -151,9 +188,9 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
-def _checkpoint_and_data(p: argparse.ArgumentParser) -> None:
+def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True) -> None:
     p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
-    p.add_argument("--data", type=Path, nargs="+", required=True, help="H5MD files or folders of them")
+    p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
 
 
@@ -195,10 +232,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="H5MD file to write")
     p.set_defaults(func=cmd_convert)
 
-    p = sub.add_parser("dataset", help="write splits.csv and stats.json (train split only)")
-    p.add_argument("--scene", choices=SCENES, required=True)
-    p.add_argument("--sweep", type=Path, required=True)
-    p.add_argument("--sims", type=Path, required=True, help="folder of <id>.h5 files")
+    p = sub.add_parser("dataset", help="write splits.csv and stats.json (train split only)",
+                       description="Split table and normalisation statistics of the train split. The sims come "
+                                   "from a sweep (--sweep and --sims) or from a split table such as the one "
+                                   "import-solidgn writes (--splits).")
+    p.add_argument("--scene", choices=SCENES + BENCHMARKS, required=True)
+    p.add_argument("--sweep", type=Path, help="sweep.csv (id and split per sim)")
+    p.add_argument("--sims", type=Path, help="folder of <id>.h5 files named in --sweep")
+    p.add_argument("--splits", type=Path, help="a split table (columns id, split, path) instead of --sweep")
     p.add_argument("--out-dir", type=Path, required=True)
     p.add_argument("--connectivity-radius", type=float, required=True, help="graph radius R (m)")
     p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
@@ -230,8 +271,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
                        description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
                                    "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
-                                   "where the scene is known, beside a constant-velocity baseline.")
-    _checkpoint_and_data(p)
+                                   "where the scene is known, beside a constant-velocity baseline. The sims are "
+                                   "--data, or one split of a --splits table.")
+    _checkpoint_and_data(p, data_required=False)
+    p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
+    p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
+                   help="which split the sims are (with --data) or which to take from --splits; auto: test where "
+                        "the table has one, else valid (said in every output)")
     p.add_argument("--history", type=int, required=True, help="K, the history length the checkpoint takes")
     p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
     p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
@@ -242,12 +288,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_evaluate)
 
+    p = sub.add_parser("combine", help="stack CSV tables of the same columns (e.g. one per protocol)")
+    p.add_argument("--tables", type=Path, nargs="+", required=True)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_combine)
+
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "
                                    "trajectories) into DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are "
                                    "read with an unpickler that admits numpy arrays and nothing else.")
     p.add_argument("src", type=Path)
     p.add_argument("dest", type=Path)
+    p.add_argument("--limit", action="append", metavar="SPLIT=N",
+                   help="import only the first N trajectories of SPLIT (train, valid or test; repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_import_solidgn)
 

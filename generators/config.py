@@ -46,18 +46,28 @@ def fill_missing(config: dict, preset: dict) -> dict:
     return out
 
 
+def _flatten(node: dict, root: dict) -> dict:
+    """``node`` with ``$ref`` resolved and the members of an ``allOf`` merged into one schema."""
+    while "$ref" in node:
+        node = _resolve(node["$ref"], root)
+    if "allOf" in node:
+        merged: dict = {}
+        for member in node["allOf"]:
+            for key, value in _flatten(member, root).items():
+                merged[key] = merged.get(key, []) + value if key == "required" else value
+        node = merged
+    return node
+
+
 def _schema_at(schema: dict, path: list[Any], root: dict) -> dict:
     node = schema
     for part in path:
-        while "$ref" in node:
-            node = _resolve(node["$ref"], root)
+        node = _flatten(node, root)
         if isinstance(part, int):
             node = node.get("items", {})
         else:
             node = node.get("properties", {}).get(part, {})
-    while "$ref" in node:
-        node = _resolve(node["$ref"], root)
-    return node
+    return _flatten(node, root)
 
 
 def _resolve(ref: str, root: dict) -> dict:
@@ -91,8 +101,16 @@ def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
     return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
 
 
+BENCHMARKS = ("slide_samer", "slide_small")
+
+
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
+    for name in BENCHMARKS:
+        section = config.get(name)
+        if isinstance(section, dict) and "history" in (section.get("model") or {}):
+            raise ConfigError(f"config key '{name}.model.history' is not allowed: a benchmark trains one model per "
+                              f"history length K in '{name}.protocols' (now {section.get('protocols')})")
     schema = yaml.safe_load(SCHEMA.read_text())
     validator = jsonschema.Draft202012Validator(schema)
     errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))

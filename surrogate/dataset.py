@@ -101,10 +101,12 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
     }
 
 
-def build(sweep_csv: Path, sims_dir: Path, out_dir: Path, connectivity_radius: float) -> dict:
-    """Write splits.csv and stats.json (train split only) into ``out_dir``."""
-    sweep = pd.read_csv(sweep_csv)
-    splits = split_table(sweep, sims_dir)
+def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float) -> dict:
+    """Write splits.csv (id, split, path) and stats.json (train split only) into ``out_dir``."""
+    missing = {"id", "split", "path"} - set(splits.columns)
+    if missing:
+        raise ValueError(f"a split table needs the columns id, split and path; missing {sorted(missing)}")
+    splits = splits[["id", "split", "path"]]
     train = [Path(p) for p in splits.loc[splits["split"] == "train", "path"]]
     stats = statistics(train, connectivity_radius)
     stats["splits"] = splits["split"].value_counts().to_dict()

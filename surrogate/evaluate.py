@@ -73,6 +73,24 @@ def data_files(data: list[Path]) -> list[Path]:
     return files
 
 
+def evaluation_split(splits: pd.DataFrame, choice: str) -> tuple[str, list[Path], str]:
+    """The split to evaluate on, its sims, and a note saying so where it is not a held-out test split.
+
+    ``choice`` is ``test``, ``valid`` or ``auto`` (test where the table has test sims, else valid).
+    """
+    if choice not in ("auto", "test", "valid"):
+        raise ValueError(f"evaluation split {choice!r} is not allowed; allowed: auto, test, valid")
+    present = set(splits["split"])
+    split = ("test" if "test" in present else "valid") if choice == "auto" else choice
+    if split not in present:
+        raise ValueError(f"the split table has no {split} sims (it has {sorted(present)})")
+    note = ""
+    if split == "valid":
+        note = ("evaluated on the valid split: the source has no test split here, and valid also chose the best "
+                "epoch, so these figures are slightly optimistic")
+    return split, [Path(p) for p in splits.loc[splits["split"] == split, "path"]], note
+
+
 def read_rollout(path: Path, sha: str) -> h5md.Trajectory:
     traj = h5md.read(path, allow_nonfinite=True)
     made_by = traj.parameters.get("rollout_checkpoint_sha")
@@ -89,9 +107,12 @@ def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray,
 
 
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
-             body_displacement: float | None = None, threads: int = 1,
-             progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
-    """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims."""
+             body_displacement: float | None = None, threads: int = 1, progress: bool = True,
+             split: str = "test", split_note: str = "") -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+    """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
+
+    ``split`` and ``split_note`` name the split the sims come from in every row written.
+    """
     torch.set_num_threads(max(1, int(threads)))
     simulator, meta = checkpoint.simulator_from(checkpoint_path)
     if int(meta["model"]["history"]) != int(history):
@@ -144,7 +165,8 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
                             "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])),
                             "n_sims": len(sims)}])
     table = pd.concat([table, timing.reindex(columns=table.columns)], ignore_index=True)
-    provenance = {"history": int(history), "checkpoint": str(checkpoint_path), "checkpoint_sha": sha,
+    provenance = {"split": split, "split_note": split_note, "history": int(history),
+                  "checkpoint": str(checkpoint_path), "checkpoint_sha": sha,
                   "config_sha": hashlib.sha256(json.dumps({k: meta[k] for k in ("model", "train", "stats")},
                                                           sort_keys=True).encode()).hexdigest()[:12],
                   "code_version": code_version(),
@@ -214,6 +236,18 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
                          ignore_index=True)
         with atomic_path(Path(per_step_csv)) as tmp:
             both.to_csv(tmp, index=False)
+
+
+def combine(paths: list[Path]) -> pd.DataFrame:
+    """Tables of the same layout (e.g. one metrics.csv per protocol) stacked in the given order."""
+    tables = [pd.read_csv(p) for p in paths]
+    if not tables:
+        raise ValueError("nothing to combine: no tables given")
+    for path, table in zip(paths, tables, strict=True):
+        if list(table.columns) != list(tables[0].columns):
+            raise ValueError(f"{path}: columns {list(table.columns)} differ from {paths[0]}'s "
+                             f"{list(tables[0].columns)}")
+    return pd.concat(tables, ignore_index=True)
 
 
 def report(table: pd.DataFrame) -> str:

@@ -52,20 +52,36 @@ def learning_rate(train_cfg: dict, step: int, total_steps: int) -> float:
     return lr * (float(final) / lr) ** min(step / max(total_steps, 1), 1.0)
 
 
+def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
+    """Positions reflected in the vertical plane through the domain's centre, ``x -> x_lo + x_hi - x``.
+
+    Gravity acts along the last axis, so the mirror image of a granular flow is a flow obeying the
+    same laws: a valid extra training sample (``train.mirror``)."""
+    out = positions.clone()
+    out[..., 0] = lower[0] + upper[0] - positions[..., 0]
+    return out
+
+
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
-               generator: torch.Generator) -> torch.Tensor:
-    """Mean squared error of the normalised acceleration over the moving particles of a batch."""
+               generator: torch.Generator, mirror: bool = False) -> torch.Tensor:
+    """Mean squared error of the normalised acceleration over the moving particles of a batch.
+
+    With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2."""
     k = simulator.history
     graphs, targets = [], []
-    for s, t in batch:
+    flips = torch.rand(len(batch), generator=generator) < 0.5 if mirror else torch.zeros(len(batch), dtype=torch.bool)
+    for (s, t), flip in zip(batch, flips.tolist(), strict=True):
         sim = sims[s]
-        window = sim.position[t - k + 1:t + 1]
+        frames = sim.position[t - k + 1:t + 2]
+        if flip:
+            frames = mirror_x(frames, simulator.lower, simulator.upper)
+        window, following = frames[:-1], frames[-1]
         moving = ~sim.kinematic
         noise = random_walk_position_noise(k, window.shape[1], window.shape[2], noise_std, moving, generator)
         noisy = window + noise
         # the target keeps the true next position relative to the noisy last one: the model learns to
         # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
-        target_next = sim.position[t + 1] + noise[-1]
+        target_next = following + noise[-1]
         graphs.append(build_graph(noisy, sim.types, sim.kinematic, simulator.radius, sim.props))
         targets.append(simulator.target(noisy, target_next))
     graph = stack_graphs(graphs)
@@ -187,7 +203,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
         for b in bar:
             batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
             loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
-                              _generator(seed, epoch, b, 1))
+                              _generator(seed, epoch, b, 1), mirror=bool(train_cfg.get("mirror", False)))
             if not torch.isfinite(loss):
                 samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
                 raise TrainingDiverged(

@@ -70,8 +70,16 @@ def _number(path: Path) -> tuple[int, str]:
     return (int(match[1]) if match else 10**9, path.stem)
 
 
-def import_dataset(src: str | Path, dest: str | Path, progress: bool = True) -> pd.DataFrame:
-    """Convert every split found in ``src``; write ``dest/sims/<split>_<n>.h5`` and ``dest/splits.csv``."""
+def import_dataset(src: str | Path, dest: str | Path, progress: bool = True,
+                   limits: dict[str, int | None] | None = None) -> pd.DataFrame:
+    """Convert every split found in ``src``; write ``dest/sims/<split>_<n>.h5`` and ``dest/splits.csv``.
+
+    ``limits`` keeps only the first N trajectories (by number) of a split; None or absent: all.
+    """
+    limits = dict(limits or {})
+    unknown = sorted(set(limits) - set(SPLITS))
+    if unknown:
+        raise ValueError(f"limits name unknown splits {unknown}; allowed: {list(SPLITS)}")
     src, dest = Path(src), Path(dest)
     meta_path = src / "metadata.json"
     if not meta_path.is_file():
@@ -81,6 +89,8 @@ def import_dataset(src: str | Path, dest: str | Path, progress: bool = True) -> 
     rows = []
     for split in SPLITS:
         files = sorted((src / split).glob("*.pkl"), key=_number) if (src / split).is_dir() else []
+        if limits.get(split) is not None:
+            files = files[: int(limits[split])]
         for path in tqdm(files, desc=f"import {src.name}/{split}", unit="sim", disable=not progress):
             sim_id = f"{split}_{_number(path)[1]}"
             out = dest / "sims" / f"{sim_id}.h5"

@@ -24,7 +24,7 @@ def tiny_dataset(tmp_path_factory):
     for row in table.to_dict("records"):
         lammps_slide.simulate(row, packing, root / "raw" / row["id"])
         convert.convert("slide", root / "raw" / row["id"], root / "sims" / f"{row['id']}.h5")
-    stats = dataset.build(root / "sweep.csv", root / "sims", root / "dataset", cfg["connectivity_radius"])
+    stats = dataset.build(dataset.split_table(table, root / "sims"), root / "dataset", cfg["connectivity_radius"])
     model = {**cfg["model"], "history": 4}
     train = {**cfg["train"], "lr": 1e-3, "batch_size": 2, "epochs": 3, "patience": 3, "checkpoint_every": 2}
     return {"root": root, "cfg": cfg, "stats": stats, "stats_path": root / "dataset" / "stats.json",

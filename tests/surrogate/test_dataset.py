@@ -27,7 +27,8 @@ def test_stats_come_from_train_split_only(tmp_path):
     constant_velocity_sim(sims / "c.h5", (50.0, 50.0))          # valid: must not leak into stats
     pd.DataFrame({"id": ["a", "b", "c"], "split": ["train", "train", "valid"]}).to_csv(
         tmp_path / "sweep.csv", index=False)
-    stats = dataset.build(tmp_path / "sweep.csv", sims, tmp_path / "out", connectivity_radius=2.5)
+    table = dataset.split_table(pd.read_csv(tmp_path / "sweep.csv"), sims)
+    stats = dataset.build(table, tmp_path / "out", connectivity_radius=2.5)
     assert stats["velocity_mean"][0] == pytest.approx(0.2)
     assert stats["velocity_std"][0] == pytest.approx(0.1)
     assert stats["acceleration_mean"] == pytest.approx([0.0, -0.02], abs=1e-6)
@@ -48,4 +49,9 @@ def test_empty_train_split_is_an_error(tmp_path):
     constant_velocity_sim(tmp_path / "a.h5", (0.1, 0.0))
     pd.DataFrame({"id": ["a"], "split": ["valid"]}).to_csv(tmp_path / "sweep.csv", index=False)
     with pytest.raises(ValueError, match="train split is empty"):
-        dataset.build(tmp_path / "sweep.csv", tmp_path, tmp_path / "out", 1.0)
+        dataset.build(dataset.split_table(pd.read_csv(tmp_path / "sweep.csv"), tmp_path), tmp_path / "out", 1.0)
+
+
+def test_a_split_table_without_paths_is_an_error(tmp_path):
+    with pytest.raises(ValueError, match=r"missing \['path'\]"):
+        dataset.build(pd.DataFrame({"id": ["a"], "split": ["train"]}), tmp_path / "out", 1.0)

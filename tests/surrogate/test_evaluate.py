@@ -1,5 +1,7 @@
 """`graphdem evaluate --checkpoint CKPT --data DIR --history K --out CSV` on a tiny real dataset."""
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -74,3 +76,41 @@ def test_a_rollout_that_blows_up_midway_counts_and_is_named():
     assert per_sim["a"] == pytest.approx(0.2) and np.isnan(per_sim["b"])
     mean = mean_per_step(steps)
     assert mean["prediction"].iloc[0] == pytest.approx(0.1) and mean["prediction"].iloc[1:].isna().all()
+
+
+def test_evaluation_split_prefers_test_and_says_when_it_falls_back_to_valid():
+    from surrogate.evaluate import evaluation_split
+    both = pd.DataFrame({"id": ["a", "b", "c"], "split": ["train", "valid", "test"], "path": ["a", "b", "c"]})
+    assert evaluation_split(both, "auto") == ("test", [Path("c")], "")
+    no_test = both[both["split"] != "test"]
+    split, paths, note = evaluation_split(no_test, "auto")
+    assert (split, paths) == ("valid", [Path("b")]) and "no test split" in note
+    with pytest.raises(ValueError, match=r"no test sims \(it has \['train', 'valid'\]\)"):
+        evaluation_split(no_test, "test")
+
+
+def test_evaluate_on_a_split_table_names_the_split_in_every_row(tiny_dataset, trained, tmp_path, capsys):
+    table = tiny_dataset["split_table"]
+    no_test = tmp_path / "splits.csv"
+    table[table["split"] != "test"].to_csv(no_test, index=False)
+    out = tmp_path / "metrics.csv"
+    code = cli.main(["evaluate", "--checkpoint", str(trained), "--splits", str(no_test), "--split", "auto",
+                     "--history", "4", "--out", str(out), "--per-step", str(tmp_path / "steps.csv"), "--no-progress"])
+    assert code == 0
+    assert "NOTE: evaluated on the valid split" in capsys.readouterr().out
+    for written in (pd.read_csv(out), pd.read_csv(tmp_path / "steps.csv")):
+        assert set(written["split"]) == {"valid"} and written["split_note"].str.contains("no test split").all()
+    valid_ids = set(table.loc[table["split"] == "valid", "id"])
+    scored = pd.read_csv(out)
+    assert set(scored.loc[scored["sim"] != "all", "sim"]) == valid_ids
+
+
+def test_combine_stacks_tables_and_refuses_different_columns(tmp_path):
+    from surrogate.evaluate import combine
+    pd.DataFrame({"metric": ["rollout MSE"], "history": [2], "mse": [30.0]}).to_csv(tmp_path / "a.csv", index=False)
+    pd.DataFrame({"metric": ["rollout MSE"], "history": [6], "mse": [40.0]}).to_csv(tmp_path / "b.csv", index=False)
+    stacked = combine([tmp_path / "a.csv", tmp_path / "b.csv"])
+    assert stacked["history"].tolist() == [2, 6] and stacked["mse"].tolist() == [30.0, 40.0]
+    pd.DataFrame({"metric": ["rollout MSE"], "mse": [40.0]}).to_csv(tmp_path / "c.csv", index=False)
+    with pytest.raises(ValueError, match="c.csv: columns"):
+        combine([tmp_path / "a.csv", tmp_path / "c.csv"])

@@ -81,3 +81,27 @@ def test_random_walk_noise_changes_the_target_consistently(tiny_dataset):
     clean = train.batch_loss(simulator, [sim], [(0, 3)], 0.0, g)
     noisy = train.batch_loss(simulator, [sim], [(0, 3)], 0.05, torch.Generator().manual_seed(0))
     assert torch.isfinite(clean) and torch.isfinite(noisy) and not torch.isclose(clean, noisy)
+
+
+def test_mirror_reflects_positions_and_the_target_acceleration_in_x(tiny_dataset):
+    """x -> x_lo + x_hi - x keeps distances and vertical motion and negates horizontal acceleration."""
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    split = tiny_dataset["split_table"]
+    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    frames = sim.position[0:5]
+    flipped = train.mirror_x(frames, simulator.lower, simulator.upper)
+    torch.testing.assert_close(train.mirror_x(flipped, simulator.lower, simulator.upper), frames)
+    exact = "donot_use_mm_for_euclid_dist"
+    torch.testing.assert_close(torch.cdist(flipped[-1], flipped[-1], compute_mode=exact),
+                               torch.cdist(frames[-1], frames[-1], compute_mode=exact), atol=1e-4, rtol=1e-5)
+    acc = frames[-1] - 2 * frames[-2] + frames[-3]
+    acc_flipped = flipped[-1] - 2 * flipped[-2] + flipped[-3]
+    torch.testing.assert_close(acc_flipped[:, 0], -acc[:, 0], atol=1e-3, rtol=0)
+    torch.testing.assert_close(acc_flipped[:, 1], acc[:, 1], atol=1e-3, rtol=0)
+    # in the loss: some samples of a batch are flipped, so the loss differs from the unflipped one
+    batch = [(0, t) for t in range(3, 8)]
+    plain = train.batch_loss(simulator, [sim], batch, 0.0, torch.Generator().manual_seed(1))
+    mirrored = train.batch_loss(simulator, [sim], batch, 0.0, torch.Generator().manual_seed(1), mirror=True)
+    assert torch.isfinite(mirrored) and not torch.isclose(plain, mirrored)

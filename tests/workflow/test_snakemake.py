@@ -111,3 +111,45 @@ def test_bad_config_stops_before_anything_runs(tmp_path, override, expected):
     assert proc.returncode != 0
     assert expected in proc.stdout + proc.stderr
     assert not (tmp_path / "results").exists()
+
+
+SOLIDGN = ROOT.parent / "shared" / "datasets" / "solidgn"
+BENCH = "results/slide_small/metrics.csv"
+
+
+def test_a_benchmark_without_solidgn_root_says_what_to_set(tmp_path):
+    proc = snakemake(tmp_path, BENCH, "-n", config=())
+    assert proc.returncode != 0
+    assert "set the config key 'solidgn_root'" in proc.stdout + proc.stderr
+    proc = snakemake(tmp_path, BENCH, "-n", config=(f"solidgn_root={tmp_path / 'nowhere'}",))
+    assert proc.returncode != 0 and "has no metadata.json" in proc.stdout + proc.stderr
+    assert not (tmp_path / "results").exists()
+
+
+def test_a_benchmark_history_is_set_by_its_protocols(tmp_path):
+    proc = snakemake(tmp_path, BENCH, "-n", config=("slide_small={model: {history: 3}}",))
+    assert proc.returncode != 0 and "'slide_small.model.history' is not allowed" in proc.stdout + proc.stderr
+
+
+@pytest.mark.skipif(not SOLIDGN.is_dir(), reason="the Solid-GN data is not beside this checkout")
+def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
+    proc = snakemake(tmp_path, BENCH, "-c2", config=(f"solidgn_root={SOLIDGN}",))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    import pandas as pd
+    res = tmp_path / "results" / "slide_small"
+    table = pd.read_csv(res / "metrics.csv")
+    mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")]
+    assert sorted(mse["history"].unique()) == [2, 6]
+    assert set(mse["method"]) == {"graphdem", "constant_velocity"}
+    assert set(table["split"]) == {"valid"} and table["split_note"].str.contains("no test split").all()
+    frames = mse.set_index(["method", "history"])["n_frames"]
+    assert frames[("constant_velocity", 2)] == 3 * 18 and frames[("constant_velocity", 6)] == 3 * 14
+    best = res / "k2" / "model" / "best.pt"
+    meta = __import__("surrogate.checkpoint", fromlist=["load"]).load(best)["json"]
+    assert meta["model"]["history"] == 2 and meta["model"]["properties"] == ["radius"]
+    assert meta["stats"]["n_train_sims"] == 6
+    steps = pd.read_csv(res / "metrics_per_step.csv")
+    assert set(steps["history"]) == {2, 6}
+    for k in (2, 6):
+        assert (res / f"k{k}" / "plots" / "rollout.gif").is_file()
+        assert (res / "benchmarks" / f"train_k{k}.tsv").is_file() and (res / "logs" / f"train_k{k}.log").is_file()

@@ -17,10 +17,14 @@ except gconfig.ConfigError as exc:
 
 SCENES = ["slide"]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
+# Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
+BENCHMARKS = list(gconfig.BENCHMARKS)
 
 
 wildcard_constraints:
     scene="|".join(SCENES),
+    bench="|".join(BENCHMARKS),
+    k=r"\d+",
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
 
@@ -103,3 +107,61 @@ def train_config_json(wildcards) -> str:
 def body_displacement_arg(wildcards) -> str:
     value = CFG[wildcards.scene]["evaluate"]["body_displacement"]
     return "" if value is None else f"--body-displacement {value}"
+
+
+# ---- public benchmarks ---------------------------------------------------------------------------
+
+
+def solidgn_metadata(wildcards) -> str:
+    """metadata.json of the benchmark's Solid-GN folder; stops with what to set when it is missing."""
+    root = CFG.get("solidgn_root")
+    if not root:
+        raise ValueError(
+            f"{wildcards.bench} needs the Solid-GN data: set the config key 'solidgn_root' to the folder holding "
+            f"Slide_Same_R/ and Slide/, e.g. snakemake -c2 results/{wildcards.bench}/metrics.csv "
+            f"--config solidgn_root=/path/to/solidgn")
+    source = os.path.join(root, CFG[wildcards.bench]["source"])
+    metadata = os.path.join(source, "metadata.json")
+    if not os.path.isfile(metadata):
+        raise ValueError(
+            f"config key 'solidgn_root' = {root!r}: {source} has no metadata.json; solidgn_root must be the "
+            f"folder holding {CFG[wildcards.bench]['source']}/ (with metadata.json, train/ and valid/ of .pkl files)")
+    return metadata
+
+
+def solidgn_source(wildcards, input) -> str:
+    return os.path.dirname(input.metadata)
+
+
+def solidgn_limits(wildcards) -> str:
+    sims = CFG[wildcards.bench]["sims"]
+    return " ".join(f"--limit {split}={n}" for split, n in sims.items() if n is not None)
+
+
+def benchmark_radius(wildcards) -> float:
+    return CFG[wildcards.bench]["connectivity_radius"]
+
+
+def benchmark_model_json(wildcards) -> str:
+    """The benchmark's model config with the protocol's history length K."""
+    return _json({**CFG[wildcards.bench]["model"], "history": int(wildcards.k)})
+
+
+def benchmark_train_json(wildcards) -> str:
+    return _json(CFG[wildcards.bench]["train"])
+
+
+def benchmark_split(wildcards) -> str:
+    return CFG[wildcards.bench]["evaluate"]["split"]
+
+
+def benchmark_protocols(wildcards, name: str) -> list[str]:
+    return [f"results/{wildcards.bench}/k{k}/{name}" for k in CFG[wildcards.bench]["protocols"]]
+
+
+def protocol_metrics(wildcards) -> list[str]:
+    return benchmark_protocols(wildcards, "metrics.csv")
+
+
+def protocol_metrics_per_step(wildcards) -> list[str]:
+    return benchmark_protocols(wildcards, "metrics_per_step.csv")

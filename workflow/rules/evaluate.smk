@@ -19,6 +19,48 @@ rule evaluate:
     benchmark:
         "results/{scene}/benchmarks/evaluate.tsv"
     shell:
-        "graphdem evaluate --checkpoint {input.checkpoint} --data {input.sims} --history {params.history} "
+        "graphdem evaluate --checkpoint {input.checkpoint} --data {input.sims} --split test --history {params.history} "
         "--rollouts results/{wildcards.scene}/rollouts --out {output.metrics} --per-step {output.per_step} "
         "--plots results/{wildcards.scene}/plots {params.body} --no-progress > {log} 2>&1"
+
+
+# A public benchmark, one protocol: roll out every sim of the evaluation split (test, or valid where
+# the source has none, which every output then says) and score Graph-DEM beside constant velocity.
+rule evaluate_benchmark:
+    input:
+        checkpoint="results/{bench}/k{k}/model/best.pt",
+        splits="results/{bench}/dataset/splits.csv",
+    output:
+        metrics="results/{bench}/k{k}/metrics.csv",
+        per_step="results/{bench}/k{k}/metrics_per_step.csv",
+        frames=report("results/{bench}/k{k}/plots/metrics_over_frames.png", caption="../report/metrics_over_frames.rst",
+                      category="benchmarks"),
+        gif=report("results/{bench}/k{k}/plots/rollout.gif", caption="../report/rollout.rst", category="benchmarks"),
+    params:
+        split=benchmark_split,
+    threads: 1
+    log:
+        "results/{bench}/logs/evaluate_k{k}.log",
+    benchmark:
+        "results/{bench}/benchmarks/evaluate_k{k}.tsv"
+    shell:
+        "graphdem evaluate --checkpoint {input.checkpoint} --splits {input.splits} --split {params.split} "
+        "--history {wildcards.k} --out {output.metrics} --per-step {output.per_step} "
+        "--plots results/{wildcards.bench}/k{wildcards.k}/plots --no-progress > {log} 2>&1"
+
+
+# Both protocols of a benchmark in one table (the `history` column tells them apart).
+rule benchmark_metrics:
+    input:
+        metrics=protocol_metrics,
+        per_step=protocol_metrics_per_step,
+    output:
+        metrics=report("results/{bench}/metrics.csv", caption="../report/benchmark_metrics.rst", category="benchmarks"),
+        per_step="results/{bench}/metrics_per_step.csv",
+    log:
+        "results/{bench}/logs/metrics.log",
+    benchmark:
+        "results/{bench}/benchmarks/metrics.tsv"
+    shell:
+        "graphdem combine --tables {input.metrics} --out {output.metrics} > {log} 2>&1 && "
+        "graphdem combine --tables {input.per_step} --out {output.per_step} >> {log} 2>&1"

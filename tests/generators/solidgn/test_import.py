@@ -67,6 +67,14 @@ def test_walls_are_kinematic_and_radii_are_kept(tmp_path):
     assert traj.parameters["scene"] == "solidgn" and traj.box_upper.tolist() == [100.0, 80.0]
 
 
+def test_limits_keep_the_first_trajectories_by_number(tmp_path):
+    src = fake_dataset(tmp_path / "src", {str(i): good() for i in (0, 1, 2, 10)})
+    table = convert.import_dataset(src, tmp_path / "dest", progress=False, limits={"train": 3})
+    assert list(table["id"]) == ["train_0", "train_1", "train_2"]          # numeric order, not 0, 1, 10
+    with pytest.raises(ValueError, match=r"unknown splits \['tset'\]"):
+        convert.import_dataset(src, tmp_path / "dest", progress=False, limits={"tset": 1})
+
+
 @pytest.mark.skipif(not SOURCE.is_dir(), reason="the Solid-GN data is not beside this checkout")
 def test_a_real_slide_small_trajectory_converts(tmp_path):
     traj = convert.trajectory(SOURCE / "Slide" / "train" / "0.pkl",
