@@ -146,16 +146,19 @@ def cmd_evaluate(args) -> None:
     print(evaluate.report(table))
     if args.plots:
         scene = str(table["scene"].iloc[0])
+        name = str(sims[0].traj.parameters.get("dataset", scene))
+        nominal_time = scene == "solidgn"         # Solid-GN stores a nominal dt: frames are the honest axis
         plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
-                                  f"{scene}: mean over {len(sims)} {split} sims, K = {args.history}"
-                                  + (" (no test split: valid)" if note else ""))
+                                  f"{name}: mean over {len(sims)} {split} sims, K = {args.history}"
+                                  + ("\n(no test split: scored on valid)" if note else ""),
+                                  x="tau" if nominal_time else "time")
         pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
         if pick is not None and pick.truth.shape[-1] == 2:
             t = pick.traj
             names = {int(k): v for k, v in dict(t.parameters.get("species_names") or {}).items()}
             plots.animation(Path(args.plots) / "rollout.gif", pick.truth, pick.predictions[evaluate.MODEL], t.radius,
                             t.species, t.time, t.box_lower, t.box_upper, args.history,
-                            f"{scene} {pick.id}: DEM (left) and Graph-DEM (right)", names)
+                            f"{name} {pick.id}: DEM (left) and Graph-DEM (right)", names)
 
 
 def cmd_combine(args) -> None:

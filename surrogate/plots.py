@@ -22,28 +22,36 @@ UNITS = {"Slide Num": "particles", "Max Ht": "m", "Mean Ht": "m", "Tongue Dis": 
          "rollout MSE": "m$^2$"}
 
 
-def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str) -> Path:
-    """One panel per metric: mean over test sims of truth and of each prediction against time."""
+def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str = "time") -> Path:
+    """One panel per metric: mean over test sims of truth and of each prediction against ``x``:
+    ``time`` (s) or ``tau`` (the predicted frame's number, for data whose times are nominal)."""
+    if x not in ("time", "tau"):
+        raise ValueError(f"x must be 'time' or 'tau', got {x!r}")
     mean = per_step[per_step["sim"] == "all"]
     metrics = list(dict.fromkeys(mean["metric"]))
     cols = min(3, len(metrics))
     rows = int(np.ceil(len(metrics) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.2 * rows), squeeze=False, constrained_layout=True)
+    fig, axes = plt.subplots(rows, cols, figsize=(max(4.6 * cols, 6.0), 3.2 * rows + 0.4), squeeze=False,
+                             constrained_layout=True)
     for ax, metric in zip(axes.flat, metrics, strict=False):
         part = mean[mean["metric"] == metric]
         first = part[part["method"] == part["method"].iloc[0]]
         if first["truth"].notna().any():
-            ax.plot(first["time"], first["truth"], **STYLE["truth"])
+            ax.plot(first[x], first["truth"], **STYLE["truth"])
         for method, group in part.groupby("method", sort=False):
-            ax.plot(group["time"], group["prediction"], **STYLE.get(method, dict(label=method)))
+            ax.plot(group[x], group["prediction"], **STYLE.get(method, dict(label=method)))
         ax.set_title(metric)
-        ax.set_xlabel("time (s)")
+        ax.set_xlabel("time (s)" if x == "time" else "predicted frame")
         ax.set_ylabel(UNITS.get(metric, ""))
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(metrics):]:
         ax.set_visible(False)
-    handles = [plt.Line2D([], [], **STYLE[k]) for k in ("truth", *dict.fromkeys(mean["method"])) if k in STYLE]
-    fig.legend(handles=handles, loc="lower right", fontsize=9, frameon=False)
+    drawn = (["truth"] if mean["truth"].notna().any() else []) + list(dict.fromkeys(mean["method"]))
+    handles = [plt.Line2D([], [], **STYLE[k]) for k in drawn if k in STYLE]
+    if len(metrics) == 1:
+        axes.flat[0].legend(handles=handles, loc="upper left", fontsize=9, frameon=False)
+    else:
+        fig.legend(handles=handles, loc="lower right", fontsize=9, frameon=False)
     fig.suptitle(title)
     path = Path(path)
     with atomic_path(path) as tmp:
