@@ -86,8 +86,9 @@ def evaluation_split(splits: pd.DataFrame, choice: str) -> tuple[str, list[Path]
         raise ValueError(f"the split table has no {split} sims (it has {sorted(present)})")
     note = ""
     if split == "valid":
-        note = ("evaluated on the valid split: the source has no test split here, and valid also chose the best "
-                "epoch, so these figures are slightly optimistic")
+        why = "the source has no test split" if "test" not in present else "chosen although a test split exists"
+        note = (f"evaluated on the valid split ({why}); valid also chose the best epoch, so these figures are "
+                f"slightly optimistic")
     return split, [Path(p) for p in splits.loc[splits["split"] == split, "path"]], note
 
 

@@ -85,6 +85,7 @@ def test_evaluation_split_prefers_test_and_says_when_it_falls_back_to_valid():
     no_test = both[both["split"] != "test"]
     split, paths, note = evaluation_split(no_test, "auto")
     assert (split, paths) == ("valid", [Path("b")]) and "no test split" in note
+    assert "although a test split exists" in evaluation_split(both, "valid")[2]
     with pytest.raises(ValueError, match=r"no test sims \(it has \['train', 'valid'\]\)"):
         evaluation_split(no_test, "test")
 
