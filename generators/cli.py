@@ -15,7 +15,7 @@ from pathlib import Path
 from generators import config as gconfig
 
 SCENES = ("slide",)
-BENCHMARKS = ("slide_samer", "slide_small")
+BENCHMARKS = gconfig.BENCHMARKS
 
 
 def _json(text: str) -> dict:
@@ -150,7 +150,7 @@ def cmd_evaluate(args) -> None:
         nominal_time = scene == "solidgn"         # Solid-GN stores a nominal dt: frames are the honest axis
         plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
                                   f"{name}: mean over {len(sims)} {split} sims, K = {args.history}"
-                                  + ("\n(no test split: scored on valid)" if note else ""),
+                                  + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
                                   x="tau" if nominal_time else "time")
         pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
         if pick is not None and pick.truth.shape[-1] == 2:
