@@ -3,7 +3,8 @@ random-walk input noise, validation by rollout error, early stopping, resumable 
 
 Files in the output folder:
 
-* ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats;
+* ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats
+  (with ``ema_decay`` set, the exponential moving average of the weights is what is validated and kept);
 * ``history.csv``: per epoch the mean training loss and the validation rollout MSE;
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
   best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
@@ -52,6 +53,16 @@ def learning_rate(train_cfg: dict, step: int, total_steps: int) -> float:
     return lr * (float(final) / lr) ** min(step / max(total_steps, 1), 1.0)
 
 
+def ema_update(average: dict[str, torch.Tensor], model: torch.nn.Module, decay: float, step: int) -> None:
+    """Exponential moving average of the weights, ``a <- d a + (1 - d) w``, with the usual warm-up
+    ``d = min(decay, (1 + step) / (10 + step))`` so that the initial weights fade out quickly."""
+    d = min(decay, (1 + step) / (10 + step))
+    with torch.no_grad():
+        for name, value in model.state_dict().items():
+            if value.is_floating_point():
+                average[name].lerp_(value, 1.0 - d)
+
+
 def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
     """Positions reflected in the vertical plane through the domain's centre, ``x -> x_lo + x_hi - x``.
 
@@ -63,27 +74,48 @@ def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) 
 
 
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
-               generator: torch.Generator, mirror: bool = False) -> torch.Tensor:
+               generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
-    With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2."""
+    With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
+    With ``pushforward`` = p, each sample that has a frame before its window is, with probability p,
+    a pushforward sample (Brandstetter et al. 2022): its last history frame is the model's own
+    one-step prediction from the (noisy) window one frame earlier, made without gradient, and the
+    target is the true next frame. The model so learns to correct the errors it makes itself in a
+    rollout, at the cost of one extra forward pass per such sample.
+    """
     k = simulator.history
-    graphs, targets = [], []
-    flips = torch.rand(len(batch), generator=generator) < 0.5 if mirror else torch.zeros(len(batch), dtype=torch.bool)
-    for (s, t), flip in zip(batch, flips.tolist(), strict=True):
+    n = len(batch)
+    flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
+    pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
+    windows, followings, sample_sims, pushes = [], [], [], []
+    for (s, t), flip, push in zip(batch, flips.tolist(), pushed.tolist(), strict=True):
         sim = sims[s]
-        frames = sim.position[t - k + 1:t + 2]
+        push = push and t >= k                         # needs the frame before the window
+        frames = sim.position[t - k + 1 - int(push):t + 2]
         if flip:
             frames = mirror_x(frames, simulator.lower, simulator.upper)
-        window, following = frames[:-1], frames[-1]
-        moving = ~sim.kinematic
-        noise = random_walk_position_noise(k, window.shape[1], window.shape[2], noise_std, moving, generator)
-        noisy = window + noise
+        window = frames[:k]
+        noise = random_walk_position_noise(k, window.shape[1], window.shape[2], noise_std, ~sim.kinematic, generator)
+        windows.append(window + noise)
         # the target keeps the true next position relative to the noisy last one: the model learns to
         # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
-        target_next = following + noise[-1]
-        graphs.append(build_graph(noisy, sim.types, sim.kinematic, simulator.radius, sim.props))
-        targets.append(simulator.target(noisy, target_next))
+        followings.append(frames[-1] + noise[-1] if not push else frames[-1])
+        sample_sims.append(sim)
+        pushes.append(frames[k] if push else None)     # true positions of the pushed frame (kinematic part used)
+    if any(p is not None for p in pushes):
+        which = [i for i, p in enumerate(pushes) if p is not None]
+        earlier = stack_graphs([build_graph(windows[i], sample_sims[i].types, sample_sims[i].kinematic,
+                                            simulator.radius, sample_sims[i].props) for i in which])
+        with torch.no_grad():
+            predicted = simulator.step(earlier, torch.cat([pushes[i] for i in which]))
+        sizes = [windows[i].shape[1] for i in which]
+        for i, frame in zip(which, predicted.split(sizes), strict=True):
+            windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
+    graphs, targets = [], []
+    for window, following, sim in zip(windows, followings, sample_sims, strict=True):
+        graphs.append(build_graph(window, sim.types, sim.kinematic, simulator.radius, sim.props))
+        targets.append(simulator.target(window, following))
     graph = stack_graphs(graphs)
     moving = ~graph.kinematic
     prediction = simulator(graph)
@@ -150,6 +182,9 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
              # the learning-rate schedule is fixed when a run starts, so a resumed run follows it exactly
              "total_steps": int(train_cfg["epochs"]) * n_batches}
     best_weights = None
+    decay = train_cfg.get("ema_decay")
+    average = {k: v.detach().clone() for k, v in simulator.state_dict().items()} if decay is not None else None
+    validator = LearnedSimulator(stats, model_cfg) if decay is not None else simulator
     last = out_dir / "last.pt"
     if last.exists() and not fresh:
         try:
@@ -167,6 +202,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             simulator.load_state_dict(saved["model"])
             optimiser.load_state_dict(saved["optimiser"])
             best_weights = saved.get("best_model")
+            if average is not None:
+                average = saved["average_model"]
             state = saved["json"]["state"]
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
@@ -178,6 +215,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
         payload = {"model": simulator.state_dict(), "optimiser": optimiser.state_dict(), "json": meta()}
         if best_weights is not None:
             payload["best_model"] = best_weights
+        if average is not None:
+            payload["average_model"] = average
         checkpoint.save(last, payload)
 
     def save_outputs() -> None:
@@ -203,7 +242,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
         for b in bar:
             batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
             loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
-                              _generator(seed, epoch, b, 1), mirror=bool(train_cfg.get("mirror", False)))
+                              _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
+                              pushforward=float(train_cfg["pushforward"]))
             if not torch.isfinite(loss):
                 samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
                 raise TrainingDiverged(
@@ -214,6 +254,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             optimiser.zero_grad(set_to_none=True)
             loss.backward()
             optimiser.step()
+            if average is not None:
+                ema_update(average, simulator, float(decay), state["step"])
             state["step"] += 1
             state["batch"] = b + 1
             state["loss_sum"] += loss.item()
@@ -232,13 +274,15 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
                 save_last()
         bar.close()
         train_loss = state["loss_sum"] / max(state["loss_count"], 1)
-        valid = validation_mse(simulator, valid_sims)
+        if average is not None:
+            validator.load_state_dict(average)
+        valid = validation_mse(validator, valid_sims)
         # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
         improved = valid < state["best_mse"] or state["best_epoch"] == -1
         if improved:
             state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
             state["best_step"] = state["step"]
-            best_weights = {k: v.detach().clone() for k, v in simulator.state_dict().items()}
+            best_weights = {k: v.detach().clone() for k, v in validator.state_dict().items()}
         else:
             state["bad_epochs"] += 1
         state["seconds"] += time.perf_counter() - clock

@@ -17,11 +17,12 @@ class GraphDEM(nn.Module):
     """
 
     def __init__(self, dim: int, history: int, n_types: int, n_props: int = 0, latent: int = 128,
-                 hidden: int = 128, message_passing: int = 10, embed: int = 16, layers: int = 3):
+                 hidden: int = 128, message_passing: int = 10, embed: int = 16, layers: int = 3,
+                 split_edge_mlp: bool = True):
         super().__init__()
         self.node_constructor = NodeConstructor(dim, history, n_types, n_props, latent, hidden, embed, layers)
         self.edge_constructor = EdgeConstructor(dim, latent, hidden, layers)
-        self.processor = nn.ModuleList(Updater(latent, hidden, layers) for _ in range(message_passing))
+        self.processor = nn.ModuleList(Updater(latent, hidden, layers, split_edge_mlp) for _ in range(message_passing))
         self.generator = MLP(latent, hidden, dim, layers, layer_norm=False)
 
     def forward(self, velocities: torch.Tensor, types: torch.Tensor, boundary: torch.Tensor, pos: torch.Tensor,

@@ -105,3 +105,53 @@ def test_mirror_reflects_positions_and_the_target_acceleration_in_x(tiny_dataset
     plain = train.batch_loss(simulator, [sim], batch, 0.0, torch.Generator().manual_seed(1))
     mirrored = train.batch_loss(simulator, [sim], batch, 0.0, torch.Generator().manual_seed(1), mirror=True)
     assert torch.isfinite(mirrored) and not torch.isclose(plain, mirrored)
+
+
+def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
+    """At p = 1 (no noise) the last input frame is the one-step prediction from the window one frame
+    earlier and the target is the true next frame; a sample with no earlier frame is left as it is."""
+    from surrogate.simulator import LearnedSimulator, build_graph
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    split = tiny_dataset["split_table"]
+    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    k, t = simulator.history, simulator.history + 1
+    earlier = sim.position[t - k:t]
+    with torch.no_grad():
+        predicted = simulator.step(build_graph(earlier, sim.types, sim.kinematic, simulator.radius), sim.position[t])
+    window = torch.cat([sim.position[t - k + 1:t], predicted.unsqueeze(0)])
+    graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
+    expected = ((simulator(graph) - simulator.target(window, sim.position[t + 1])) ** 2)[~sim.kinematic].mean()
+    got = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0), pushforward=1.0)
+    torch.testing.assert_close(got, expected)
+    plain = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0))
+    assert not torch.isclose(got, plain)          # an untrained model's prediction is not the data
+    first = [(0, k - 1)]                          # no frame before the window: never pushed
+    torch.testing.assert_close(train.batch_loss(simulator, [sim], first, 0.0, torch.Generator(), pushforward=1.0),
+                               train.batch_loss(simulator, [sim], first, 0.0, torch.Generator()))
+
+
+def test_weight_average_follows_the_ema_formula():
+    model = torch.nn.Linear(2, 1)
+    average = {k: v.clone() for k, v in model.state_dict().items()}
+    start = average["weight"].clone()
+    with torch.no_grad():
+        model.weight.add_(1.0)
+    train.ema_update(average, model, decay=0.99, step=0)          # warm-up: d = 1/10
+    torch.testing.assert_close(average["weight"], start + 0.9)
+    train.ema_update(average, model, decay=0.5, step=1000)        # d = 0.5 once warm
+    torch.testing.assert_close(average["weight"], start + 0.95)
+
+
+def test_run_with_pushforward_and_weight_average_resumes_exactly(tiny_dataset, tmp_path):
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "pushforward": 0.5, "ema_decay": 0.9}}
+    whole = run(tiny, tmp_path / "whole")
+    run(tiny, tmp_path / "parts", max_steps=3)
+    resumed = run(tiny, tmp_path / "parts")
+    assert resumed["step"] == whole["step"]
+    wa = checkpoint.load(tmp_path / "whole" / "best.pt")["model"]
+    wb = checkpoint.load(tmp_path / "parts" / "best.pt")["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    last = checkpoint.load(tmp_path / "whole" / "last.pt")
+    assert not all(torch.equal(last["model"][k], last["average_model"][k]) for k in wa)   # the average is kept apart

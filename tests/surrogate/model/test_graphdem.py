@@ -49,3 +49,23 @@ def test_3d_scene_with_properties_has_no_padding_and_uses_the_property():
     a = model(vel, types, bnd, pos, edges, 0.5, props=torch.zeros(10, 1))
     b = model(vel, types, bnd, pos, edges, 0.5, props=torch.ones(10, 1))
     assert a.shape == (10, 3) and not torch.allclose(a, b)
+
+
+def test_split_edge_mlp_gives_the_concatenated_first_layer_result():
+    torch.manual_seed(0)
+    concat = GraphDEM(dim=2, history=3, n_types=2, latent=24, hidden=20, message_passing=3,
+                      split_edge_mlp=False).double()
+    split = GraphDEM(dim=2, history=3, n_types=2, latent=24, hidden=20, message_passing=3,
+                     split_edge_mlp=True).double()
+    split.load_state_dict(concat.state_dict())        # same weights: only the arithmetic is regrouped
+    pos = torch.tensor(np.random.default_rng(1).uniform(0, 10, (30, 2)))
+    g = torch.Generator().manual_seed(2)
+    vel, types = torch.randn(30, 2, 2, generator=g, dtype=torch.float64), torch.randint(0, 2, (30,), generator=g)
+    bnd, edges = boundary_features(pos, torch.zeros(2), torch.full((2,), 10.0), 2.0), radius_graph(pos, 2.0)
+    a = concat(vel, types, bnd, pos, edges, 2.0)
+    b = split(vel, types, bnd, pos, edges, 2.0)
+    torch.testing.assert_close(a, b, rtol=1e-12, atol=1e-12)
+    a.sum().backward()
+    b.sum().backward()
+    for (name, p), q in zip(concat.named_parameters(), split.parameters(), strict=True):
+        torch.testing.assert_close(p.grad, q.grad, rtol=1e-10, atol=1e-12, msg=name)
