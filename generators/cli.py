@@ -111,10 +111,11 @@ def cmd_rollout(args) -> None:
     _logging()
     torch.set_num_threads(max(1, args.threads))
     simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    simulator, rt = _runtime(args, simulator)
     sha = checkpoint.digest(args.checkpoint)
     for path in evaluate.data_files(args.data):
         sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [])
-        result = rollout.rollout(simulator, sim)
+        result = rollout.rollout(simulator, sim, runtime=rt)
         out = rollout.write(Path(args.out_dir) / f"{sim.id}.h5", sim, result, args.checkpoint, sha)
         per_frame = result.seconds / max(result.n_predicted, 1)
         status = "" if result.first_nonfinite is None else f", NON-FINITE from frame {result.first_nonfinite}"
@@ -126,7 +127,7 @@ def cmd_rollout(args) -> None:
 def cmd_evaluate(args) -> None:
     import pandas as pd
 
-    from surrogate import evaluate, plots
+    from surrogate import evaluate, plots, runtime
     _logging()
     if (args.data is None) == (args.splits is None):
         raise SystemExit("graphdem evaluate: give either --data (H5MD files or folders) or --splits (a split table)")
@@ -141,7 +142,9 @@ def cmd_evaluate(args) -> None:
         print(f"NOTE: {note}")
     table, steps, sims = evaluate.evaluate(args.checkpoint, data, args.history, rollouts_dir=args.rollouts,
                                            body_displacement=args.body_displacement, threads=args.threads,
-                                           progress=not args.no_progress, split=split, split_note=note)
+                                           progress=not args.no_progress, split=split, split_note=note,
+                                           runtime=None if args.runtime_json is None
+                                           else runtime.Runtime.from_config(args.runtime_json))
     evaluate.write(table, steps, args.out, args.per_step)
     print(evaluate.report(table))
     if args.plots:
@@ -195,6 +198,18 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
     p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
     p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--runtime-json", type=_json,
+                   help="the scene's runtime switches (JSON: split_edge_mlp, prune_isolated, precision, sleep_speed; "
+                        "docs/performance.md); default: compute as in training")
+
+
+def _runtime(args, simulator):
+    """The simulator prepared for the --runtime-json switches, and the Runtime (None without)."""
+    from surrogate import runtime
+    if args.runtime_json is None:
+        return simulator, None
+    rt = runtime.Runtime.from_config(args.runtime_json)
+    return runtime.apply(simulator, rt), rt
 
 
 def build_parser() -> argparse.ArgumentParser:

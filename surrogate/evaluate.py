@@ -22,6 +22,8 @@ from surrogate import checkpoint
 from surrogate.baseline import constant_velocity
 from surrogate.metrics import SCENES, accuracy
 from surrogate.rollout import rollout, rollout_mse
+from surrogate.runtime import Runtime
+from surrogate.runtime import apply as apply_runtime
 from surrogate.samples import load_sim
 
 log = logging.getLogger("graphdem.evaluate")
@@ -109,13 +111,16 @@ def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray,
 
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, threads: int = 1, progress: bool = True,
-             split: str = "test", split_note: str = "") -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+             split: str = "test", split_note: str = "", runtime: Runtime | None = None) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
-    ``split`` and ``split_note`` name the split the sims come from in every row written.
+    ``split`` and ``split_note`` name the split the sims come from in every row written; ``runtime``
+    sets the switches of rollouts made here (:mod:`surrogate.runtime`).
     """
     torch.set_num_threads(max(1, int(threads)))
     simulator, meta = checkpoint.simulator_from(checkpoint_path)
+    if runtime is not None:
+        apply_runtime(simulator, runtime)
     if int(meta["model"]["history"]) != int(history):
         raise ValueError(f"{checkpoint_path} was trained with a history of K = {meta['model']['history']} "
                          f"frames; --history {history} does not match it")
@@ -134,7 +139,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
             bad = None if bad in (None, "null", -1) else int(bad)
             seconds = float(predicted.parameters.get("rollout_seconds_per_frame", np.nan))
         else:
-            result = rollout(simulator, sim)
+            result = rollout(simulator, sim, runtime=runtime)
             pred, bad = result.position, result.first_nonfinite
             seconds = result.seconds / max(result.n_predicted, 1)
         truth = np.asarray(traj.position, np.float64)

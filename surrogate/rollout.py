@@ -13,14 +13,18 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import torch
 
+from scipy.spatial import cKDTree
+
 from generators import h5md
+from surrogate.graph import radius_graph
+from surrogate.runtime import Runtime
 from surrogate.samples import Sim
-from surrogate.simulator import LearnedSimulator, build_graph
+from surrogate.simulator import Graph, LearnedSimulator, build_graph
 
 
 @dataclass
 class Rollout:
-    position: np.ndarray                 # [T, N, D]; frames < K are the data's
+    position: np.ndarray                 # [T, N, D] (float64 for a float64 rollout); frames < K are the data's
     history: int
     first_nonfinite: int | None = None   # first frame with a non-finite position, None if clean
     seconds: float = 0.0                 # wall time of the predicted frames
@@ -34,32 +38,103 @@ class Rollout:
         return end - self.history
 
 
+def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, kinematic_next: torch.Tensor,
+                  runtime: Runtime, counts: dict) -> tuple[torch.Tensor, float]:
+    """One step with sleeping particles and isolated unpredicted particles left out (runtime switches)."""
+    t0 = time.perf_counter()
+    last = window[-1]
+    kinematic = sim.kinematic
+    static = kinematic.clone()
+    if runtime.sleep_speed is not None:
+        speed = (window[1:] - window[:-1]).norm(dim=-1).amax(dim=0)
+        resting = ~kinematic & (speed < runtime.sleep_speed)
+        awake = ~kinematic & ~resting
+        if resting.any() and awake.any():
+            distance, _ = cKDTree(last[awake].double().numpy()).query(
+                last[resting].double().numpy(), distance_upper_bound=simulator.radius)
+            woken = torch.from_numpy(distance < simulator.radius)
+            resting[resting.clone()] = ~woken
+        static = kinematic | resting
+        counts["asleep"] += int(resting.sum())
+    edges = radius_graph(last, simulator.radius, static.numpy())
+    keep = ~static
+    if runtime.prune_isolated:
+        linked = edges[:, edges[0] != edges[1]]
+        keep = keep.clone()
+        keep[linked[0]] = True
+        keep[linked[1]] = True
+    else:
+        keep = torch.ones_like(keep)
+    index = keep.nonzero().squeeze(1)
+    remap = torch.full((len(keep),), -1, dtype=torch.long)
+    remap[index] = torch.arange(len(index))
+    sub_edges = remap[edges]
+    sub_edges = sub_edges[:, (sub_edges >= 0).all(dim=0)]
+    graph = Graph(window[:, index], sim.types[index], static[index], sub_edges,
+                  None if sim.props is None else sim.props[index].to(window.dtype))
+    seconds_graph = time.perf_counter() - t0
+    counts["nodes"] += len(index)
+    counts["edges"] += sub_edges.shape[1]
+    with runtime.autocast():
+        acceleration = simulator(graph).to(window.dtype)
+    predicted = simulator.integrate(graph.window, acceleration)
+    nxt = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
+    moving = ~static[index]
+    nxt[index[moving]] = predicted[moving]
+    return nxt, seconds_graph
+
+
 @torch.inference_mode()
-def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None) -> Rollout:
-    """Predict frames ``K .. n_frames-1`` (default: as many frames as the sim has)."""
+def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, runtime: Runtime | None = None,
+            start: torch.Tensor | None = None) -> Rollout:
+    """Predict frames ``K .. n_frames-1`` (default: as many frames as the sim has).
+
+    ``runtime`` selects the switches of :mod:`surrogate.runtime` (the simulator must have been
+    prepared with :func:`surrogate.runtime.apply`); None computes as in training. ``start``
+    replaces the first K frames (e.g. a perturbed history for a stress test).
+    """
     k = simulator.history
     total = sim.n_frames if n_frames is None else int(n_frames)
     if sim.n_frames < k + 1 or total < k + 1:
         raise ValueError(f"{sim.path}: a rollout needs more than K = {k} frames, the sim has {sim.n_frames}")
-    positions = torch.full((total, *sim.position.shape[1:]), float("nan"))
-    positions[:k] = sim.position[:k]
+    dtype = runtime.network_dtype if runtime is not None else torch.float32
+    reduced = runtime is not None and (runtime.prune_isolated or runtime.sleep_speed is not None)
+    positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype)
+    positions[:k] = sim.position[:k] if start is None else start
+    props = None if sim.props is None else sim.props.to(dtype)
+    counts = {"asleep": 0, "nodes": 0, "edges": 0}
     first_bad = None
     t_graph = 0.0
-    start = time.perf_counter()
+    start_clock = time.perf_counter()
     for t in range(k, total):
         window = positions[t - k:t]
-        t0 = time.perf_counter()
-        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, sim.props)
-        t_graph += time.perf_counter() - t0
         # beyond the recorded window, kinematic particles stay where the data left them
-        kinematic_next = sim.position[min(t, sim.n_frames - 1)]
-        nxt = simulator.step(graph, kinematic_next)
+        kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
+        if reduced:
+            nxt, seconds_graph = _reduced_step(simulator, sim, window, kinematic_next, runtime, counts)
+            t_graph += seconds_graph
+        else:
+            t0 = time.perf_counter()
+            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props)
+            t_graph += time.perf_counter() - t0
+            counts["nodes"] += graph.types.numel()
+            counts["edges"] += graph.edge_index.shape[1]
+            if runtime is None:
+                nxt = simulator.step(graph, kinematic_next)
+            else:
+                with runtime.autocast():
+                    acceleration = simulator(graph).to(dtype)
+                nxt = torch.where(sim.kinematic.unsqueeze(-1), kinematic_next,
+                                  simulator.integrate(window, acceleration))
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
         positions[t] = nxt
-    seconds = time.perf_counter() - start
-    return Rollout(positions.numpy(), k, first_bad, seconds, t_graph)
+    seconds = time.perf_counter() - start_clock
+    steps = max((first_bad if first_bad is not None else total) - k, 1)
+    timing = {"nodes_per_step": counts["nodes"] / steps, "edges_per_step": counts["edges"] / steps,
+              "asleep_per_step": counts["asleep"] / steps}
+    return Rollout(positions.numpy(), k, first_bad, seconds, t_graph, timing)
 
 
 def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, history: int) -> np.ndarray:

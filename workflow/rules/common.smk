@@ -34,7 +34,7 @@ def _json(value) -> str:
 
 
 # Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "evaluate")
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate")
 
 
 def scene_config_json(wildcards) -> str:
@@ -102,6 +102,12 @@ def model_config_json(wildcards) -> str:
 
 def train_config_json(wildcards) -> str:
     return _json(CFG[wildcards.scene]["train"])
+
+
+def runtime_json(wildcards) -> str:
+    """The runtime switches of a scene or benchmark (surrogate/runtime.py)."""
+    name = getattr(wildcards, "scene", None) or wildcards.bench
+    return _json(CFG[name]["runtime"])
 
 
 def body_displacement_arg(wildcards) -> str:

@@ -38,6 +38,7 @@ rule evaluate_benchmark:
         gif=report("results/{bench}/k{k}/plots/rollout.gif", caption="../report/rollout.rst", category="benchmarks"),
     params:
         split=benchmark_split,
+        runtime=runtime_json,
     threads: 1
     log:
         "results/{bench}/logs/evaluate_k{k}.log",
@@ -45,7 +46,7 @@ rule evaluate_benchmark:
         "results/{bench}/benchmarks/evaluate_k{k}.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint} --splits {input.splits} --split {params.split} "
-        "--history {wildcards.k} --out {output.metrics} --per-step {output.per_step} "
+        "--history {wildcards.k} --runtime-json {params.runtime:q} --out {output.metrics} --per-step {output.per_step} "
         "--plots results/{wildcards.bench}/k{wildcards.k}/plots --no-progress > {log} 2>&1"
 
 

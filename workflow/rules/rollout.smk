@@ -5,6 +5,8 @@ rule rollout:
         sim="results/{scene}/sims/{sim}.h5",
     output:
         "results/{scene}/rollouts/{sim}.h5",
+    params:
+        runtime=runtime_json,
     threads: 1
     log:
         "results/{scene}/logs/rollout/{sim}.log",
@@ -12,4 +14,4 @@ rule rollout:
         "results/{scene}/benchmarks/rollout/{sim}.tsv"
     shell:
         "graphdem rollout --checkpoint {input.checkpoint} --data {input.sim} "
-        "--out-dir results/{wildcards.scene}/rollouts --threads {threads} > {log} 2>&1"
+        "--out-dir results/{wildcards.scene}/rollouts --threads {threads} --runtime-json {params.runtime:q} > {log} 2>&1"

@@ -1,0 +1,67 @@
+"""How a trained surrogate computes a rollout: switches that change the arithmetic, not the weights.
+
+Every switch comes from a scene's ``runtime`` config section (docs/performance.md gives each
+one's measured effect):
+
+* ``split_edge_mlp`` (exact): the first layer of every edge MLP is evaluated per node and gathered
+  (:class:`surrogate.model.updater.Updater`);
+* ``prune_isolated`` (exact): particles that are not predicted (kinematic, or asleep) and have no
+  edge to a predicted one are left out of the graph. With no edge between two such particles, they
+  cannot influence any prediction, so dropping them changes nothing;
+* ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network;
+  positions are integrated in float32);
+* ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is
+  below this speed (m per frame) and that has no awake particle within R sleeps: it keeps its
+  position, gets no prediction, and has no edge to another sleeping or kinematic particle. It wakes
+  as soon as an awake particle comes within R.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+
+PRECISIONS = ("float64", "float32", "bfloat16")
+
+
+@dataclass(frozen=True)
+class Runtime:
+    split_edge_mlp: bool
+    prune_isolated: bool
+    precision: str
+    sleep_speed: float | None
+
+    def __post_init__(self):
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"runtime.precision = {self.precision!r}: allowed are {', '.join(PRECISIONS)}")
+        if self.sleep_speed is not None and not self.sleep_speed > 0:
+            raise ValueError(f"runtime.sleep_speed = {self.sleep_speed!r}: a positive speed (m per frame) or null")
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> Runtime:
+        allowed = set(cls.__dataclass_fields__)
+        unknown, missing = set(cfg) - allowed, allowed - set(cfg)
+        if unknown or missing:
+            raise ValueError(f"runtime config: unknown keys {sorted(unknown)}, missing keys {sorted(missing)}; "
+                             f"the keys are {sorted(allowed)}")
+        return cls(**cfg)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @property
+    def network_dtype(self) -> torch.dtype:
+        return torch.float64 if self.precision == "float64" else torch.float32
+
+    def autocast(self):
+        """Context for the network's forward pass (bfloat16 autocast on the CPU, or nothing)."""
+        return torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16")
+
+
+def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:
+    """Set the switches that live in the modules (edge MLP form, float64 weights); returns it."""
+    for module in simulator.modules():
+        if hasattr(module, "split_edge_mlp"):
+            module.split_edge_mlp = runtime.split_edge_mlp
+    return simulator.to(runtime.network_dtype)

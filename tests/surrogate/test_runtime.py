@@ -1,0 +1,90 @@
+"""Runtime switches of a rollout: exact ones change nothing, sleeping holds only particles at rest."""
+
+import copy
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from surrogate import rollout, runtime
+from surrogate.samples import load_sim
+from surrogate.simulator import LearnedSimulator
+
+pytestmark = pytest.mark.engine
+
+PLAIN = runtime.Runtime(split_edge_mlp=False, prune_isolated=False, precision="float64", sleep_speed=None)
+
+
+def prepared(simulator, rt):
+    return runtime.apply(copy.deepcopy(simulator), rt)
+
+
+@pytest.fixture(scope="module")
+def simulator_and_sim(tiny_dataset):
+    stats = json.loads(tiny_dataset["stats_json"])
+    table = tiny_dataset["split_table"]
+    torch.manual_seed(0)
+    sim = load_sim(table.loc[table["split"] == "test", "path"].iloc[0], stats)
+    return LearnedSimulator(stats, tiny_dataset["model"]).eval(), sim
+
+
+def test_exact_switches_leave_the_rollout_unchanged(simulator_and_sim):
+    simulator, sim = simulator_and_sim
+    reference = rollout.rollout(prepared(simulator, PLAIN), sim, runtime=PLAIN)
+    fast = replace(PLAIN, split_edge_mlp=True, prune_isolated=True)
+    result = rollout.rollout(prepared(simulator, fast), sim, runtime=fast)
+    assert result.position.dtype == np.float64
+    np.testing.assert_allclose(result.position, reference.position, rtol=0, atol=1e-9)
+    assert result.timing["nodes_per_step"] < reference.timing["nodes_per_step"]     # isolated walls left out
+    assert result.timing["edges_per_step"] < reference.timing["edges_per_step"]
+
+
+def test_float32_and_bfloat16_rollouts_stay_close_to_float64(simulator_and_sim):
+    simulator, sim = simulator_and_sim
+    reference = rollout.rollout(prepared(simulator, PLAIN), sim, runtime=PLAIN).position
+    spread = np.abs(reference[-1] - reference[0]).max()
+    for precision, tolerance in (("float32", 1e-4), ("bfloat16", 0.1)):
+        rt = replace(PLAIN, precision=precision)
+        position = rollout.rollout(prepared(simulator, rt), sim, runtime=rt).position
+        assert position.dtype == np.float32
+        difference = np.abs(position - reference).max()
+        assert 0 < difference < tolerance * max(spread, 1.0), precision
+
+
+def test_unknown_precision_and_keys_are_refused():
+    with pytest.raises(ValueError, match="precision = 'half'.*float64, float32, bfloat16"):
+        replace(PLAIN, precision="half")
+    with pytest.raises(ValueError, match=r"unknown keys \['sleep'\]"):
+        runtime.Runtime.from_config({**PLAIN.as_dict(), "sleep": True})
+
+
+def two_clusters(simulator, sim):
+    """The real sim's particles, with a resting block far from a moving one and one resting
+    particle just inside R of the moving block."""
+    k = simulator.history
+    moving = (~sim.kinematic).nonzero().squeeze(1)
+    base = sim.position[0].clone()
+    frames = base.repeat(k + 3, 1, 1)
+    fast, rest = moving[:5], moving[5:]
+    for f in range(k + 3):                           # the fast block moves 1 m per frame in x
+        frames[f, fast] = base[fast] + torch.tensor([1.0 * f, 0.0])
+    near = rest[0]
+    frames[:, near] = frames[k - 1, fast[0]] + torch.tensor([0.0, 0.6 * simulator.radius])
+    return replace(sim, position=frames), fast, rest, near
+
+
+def test_sleeping_particles_hold_still_and_wake_near_motion(simulator_and_sim):
+    simulator, sim = simulator_and_sim
+    crafted, fast, rest, near = two_clusters(simulator, sim)
+    rt = replace(PLAIN, prune_isolated=True, sleep_speed=1e-3)
+    result = rollout.rollout(prepared(simulator, rt), crafted, runtime=rt)
+    k = simulator.history
+    distance = torch.cdist(crafted.position[k - 1, rest], crafted.position[k - 1, fast]).min(dim=1).values
+    far = rest[distance > 3 * simulator.radius]
+    assert len(far) > 0 and result.timing["asleep_per_step"] > 0
+    np.testing.assert_array_equal(result.position[k, far], crafted.position[k - 1, far].double().numpy())
+    assert not np.allclose(result.position[k, near], crafted.position[k - 1, near].double().numpy())   # woken
+    awake_only = rollout.rollout(prepared(simulator, PLAIN), crafted, runtime=PLAIN)
+    np.testing.assert_allclose(result.position[k, fast], awake_only.position[k, fast], atol=0.05 * 1.0)
