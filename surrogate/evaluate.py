@@ -111,7 +111,8 @@ def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray,
 
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, threads: int = 1, progress: bool = True,
-             split: str = "test", split_note: str = "", runtime: Runtime | None = None) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+             split: str = "test", split_note: str = "", runtime: Runtime | None = None
+             ) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
     ``split`` and ``split_note`` name the split the sims come from in every row written; ``runtime``

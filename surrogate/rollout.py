@@ -12,7 +12,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
-
 from scipy.spatial import cKDTree
 
 from generators import h5md
