@@ -167,10 +167,43 @@ def cmd_evaluate(args) -> None:
 def cmd_combine(args) -> None:
     from generators.atomic import atomic_path
     from surrogate.evaluate import combine
-    table = combine(args.tables)
+    table = combine(args.tables, union=args.union)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False)
     print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
+
+
+def cmd_stability_dem(args) -> None:
+    import tempfile
+
+    from generators import stress
+    from generators.atomic import atomic_path
+    with tempfile.TemporaryDirectory(prefix="graphdem-stress-") as scratch:
+        table = stress.dem_time_steps(args.scene, args.sim, Path(args.packing), args.factors, Path(scratch))
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    for row in table.to_dict("records"):
+        outcome = "stable" if row["stable"] else f"BLOWS UP at frame {row['frame']}: {row['cause']}"
+        print(f"{row['sim']}, {row['setting']}: {outcome}")
+
+
+def cmd_stability_surrogate(args) -> None:
+    import torch
+
+    from generators.atomic import atomic_path
+    from surrogate import checkpoint, evaluate, runtime, stress
+    from surrogate.samples import load_sim
+    _logging()
+    torch.set_num_threads(max(1, args.threads))
+    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or []) for p in evaluate.data_files(args.data)]
+    if args.runtime_json is None:
+        raise SystemExit("graphdem stability-surrogate: --runtime-json is required (the scene's runtime config)")
+    rt = runtime.Runtime.from_config(args.runtime_json)
+    table = stress.surrogate_report(simulator, rt, sims, args.lengths, args.noise, args.seed, args.max_overlap)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(table.drop(columns=["cause"]).to_string(index=False))
 
 
 def cmd_import_solidgn(args) -> None:
@@ -308,8 +341,34 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("combine", help="stack CSV tables of the same columns (e.g. one per protocol)")
     p.add_argument("--tables", type=Path, nargs="+", required=True)
+    p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_combine)
+
+    p = sub.add_parser("stability-dem", help="run one sim at multiples of the stable DEM time step; report blow-ups",
+                       description="Stress test of the DEM: the sim of --sim run with dt = f x the stable limit "
+                                   "for every f of --factors, through the same blow-up detectors as the dataset "
+                                   "(non-finite values, escapes, overlaps, energy growth). Writes one row per f: "
+                                   "stable, or the frame and cause of the blow-up; raw output is discarded.")
+    p.add_argument("--scene", choices=SCENES, required=True)
+    p.add_argument("--sim", type=_json, required=True, help="one row of the sweep table (JSON)")
+    p.add_argument("--packing", type=Path, required=True, help="the sim's settled packing (prepare stage)")
+    p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
+    p.add_argument("--out", type=Path, required=True, help="CSV report")
+    p.set_defaults(func=cmd_stability_dem)
+
+    p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
+                       description="Stress test of the surrogate on H5MD sims: rollouts --lengths times the "
+                                   "recorded window from a history with random-walk noise (non-finite frames, "
+                                   "escapes, overlaps, error growth per step, final speed), and the recorded "
+                                   "rollout in float64, float32 and bfloat16 (differences from float64).")
+    _checkpoint_and_data(p)
+    p.add_argument("--lengths", type=int, nargs="+", required=True, help="rollout lengths in recorded windows")
+    p.add_argument("--noise", type=float, required=True, help="std (m per frame) of the initial history's noise")
+    p.add_argument("--seed", type=int, required=True, help="seed of the history noise")
+    p.add_argument("--max-overlap", type=float, required=True, help="overlap limit (fraction of the smaller radius)")
+    p.add_argument("--out", type=Path, required=True, help="CSV report")
+    p.set_defaults(func=cmd_stability_surrogate)
 
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "

@@ -1,4 +1,5 @@
-"""Blow-up detection for DEM trajectories: non-finite values, escapes, excessive overlaps."""
+"""Blow-up detection for DEM trajectories: non-finite values, escapes, excessive overlaps, and
+mechanical energy that grows although nothing supplies it."""
 
 from __future__ import annotations
 
@@ -49,3 +50,20 @@ def check_trajectory(sim: str, position: np.ndarray, radius: np.ndarray, kinemat
         frac = max_overlap_fraction(x, radius, kinematic)
         if frac > max_overlap:
             raise BlowUp(sim, frame, f"overlap of {frac:.3f} radii exceeds the limit {max_overlap}")
+
+
+def check_energy(sim: str, kinetic: np.ndarray, potential: np.ndarray, scale: float, max_gain: float) -> None:
+    """Raise BlowUp at the first frame whose mechanical energy (kinetic + gravitational) exceeds the
+    first frame's by more than ``max_gain * scale``.
+
+    A granular flow under gravity only dissipates: its kinetic plus potential energy never grows
+    (the elastic energy of the contacts is a small fraction of ``scale``). Growth means the
+    integrator is injecting energy: the hallmark of a time step above the stable limit.
+    """
+    energy = np.asarray(kinetic, float) + np.asarray(potential, float)
+    gain = (energy - energy[0]) / scale
+    bad = np.flatnonzero(~np.isfinite(gain) | (gain > max_gain))
+    if len(bad):
+        f = int(bad[0])
+        raise BlowUp(sim, f, f"mechanical energy grew by {gain[f]:.3g} x the reference energy {scale:.4g} J "
+                             f"since frame 0 with no energy source (limit {max_gain})")

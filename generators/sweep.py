@@ -16,7 +16,7 @@ SCENE_PARAMS = {
     "slide": ("domain", "gravity", "bedrock_profile", "soil_surface", "bedrock_radius", "radius",
               "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
               "weak_friction", "weak_rolling_friction", "dt_safety", "dt", "frames", "record_start",
-              "frame_interval", "max_overlap", "engine"),
+              "frame_interval", "max_overlap", "max_energy_gain", "engine"),
 }
 
 

@@ -245,11 +245,14 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
             both.to_csv(tmp, index=False)
 
 
-def combine(paths: list[Path]) -> pd.DataFrame:
-    """Tables of the same layout (e.g. one metrics.csv per protocol) stacked in the given order."""
+def combine(paths: list[Path], union: bool = False) -> pd.DataFrame:
+    """Tables of the same layout (e.g. one metrics.csv per protocol) stacked in the given order;
+    with ``union``, tables of different columns (blank where a table has no such column)."""
     tables = [pd.read_csv(p) for p in paths]
     if not tables:
         raise ValueError("nothing to combine: no tables given")
+    if union:
+        return pd.concat(tables, ignore_index=True)
     for path, table in zip(paths, tables, strict=True):
         if list(table.columns) != list(tables[0].columns):
             raise ValueError(f"{path}: columns {list(table.columns)} differ from {paths[0]}'s "

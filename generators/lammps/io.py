@@ -76,6 +76,16 @@ def read_thermo(log: Path) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=header)
 
 
+def loop_times(log: Path) -> list[tuple[float, int]]:
+    """(seconds, steps) of every ``run`` in a LAMMPS log, from its "Loop time of ..." lines."""
+    out = []
+    for line in Path(log).read_text().splitlines():
+        if line.startswith("Loop time of "):
+            words = line.split()
+            out.append((float(words[3]), int(words[8])))
+    return out
+
+
 def version(log: Path) -> str:
     """The LAMMPS version from the first line of a log file, e.g. '29 Sep 2021 - Update 2'."""
     first = Path(log).read_text().split("\n", 1)[0]

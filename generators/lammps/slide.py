@@ -110,21 +110,42 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
                 cause = f"particles left the domain ({cause})"
             elif "Non-numeric" in cause or "nan" in cause.lower():
                 cause = f"non-finite values ({cause})"
+            if exc.step < nstart:
+                cause += (f", after DEM step {exc.step} (its last thermo output), in the run-up before the first "
+                          f"recorded frame")
             raise stability.BlowUp(sim, max(0, exc.step - nstart) // every, cause) from exc
         raw = read_raw(tmp)
         stability.check_trajectory(sim, raw["position"], raw["radius"], raw["kinematic"],
                                    np.zeros(2), np.array([width, height]), row["max_overlap"])
         thermo = io.read_thermo(tmp / "log.lammps")
+        check_energy(sim, raw, thermo, row)
+        (window_seconds, window_steps) = io.loop_times(tmp / "log.lammps")[-1]
         meta = {
             "params": row, "engine": "lammps", "engine_version": run.version,
             "command": run.command, "wall_time": run.wall_time, "dt": var["dt"],
             "dt_limit": var["_dt_limit"], "steps_per_frame": every, "n_steps": nstart + nsteps,
             "record_start_step": nstart,
+            "window_seconds": window_seconds, "window_steps": window_steps,   # the recorded window's loop time
             "frame_interval": every * var["dt"], "packing": str(packing_dir),
             "kinetic_energy": (thermo["c_ke"] + thermo["c_erot"]).tolist() if len(thermo) else [],
         }
         (tmp / RUN_FILE).write_text(json.dumps(meta, indent=2))
     return meta
+
+
+def check_energy(sim: str, raw: dict, thermo: pd.DataFrame, row: dict) -> None:
+    """Kinetic (thermo, translational + rotational) plus gravitational energy of the soil at the
+    recorded frames must not grow (stability.check_energy)."""
+    thermo = thermo.drop_duplicates("Step", keep="last").set_index("Step")
+    missing = sorted(set(raw["step"].tolist()) - set(thermo.index.astype(int).tolist()))
+    if missing:
+        raise io.LammpsOutputError(f"{sim}: no thermo output at recorded steps {missing[:3]}")
+    kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
+    soil = ~raw["kinematic"]
+    mass = raw["mass"][soil]
+    potential = row["gravity"] * (raw["position"][:, soil, 1] * mass).sum(axis=1)
+    scale = row["gravity"] * mass.sum() * 2.0 * raw["radius"][soil].mean()
+    stability.check_energy(sim, kinetic, potential, scale, row["max_energy_gain"])
 
 
 def read_raw(raw_dir: Path) -> dict:

@@ -42,3 +42,18 @@ def test_overlap_between_two_kinematic_particles_is_geometry():
     pos[:, 1] = [2.2, 2.0]
     stability.check_trajectory("s", pos, r, np.array([True, True, False]), LOWER, UPPER, 0.1)
     assert stability.max_overlap_fraction(pos[0], r, np.zeros(3, bool)) == pytest.approx(1.6)
+
+
+def test_energy_that_only_dissipates_is_not_flagged():
+    kinetic = np.array([0.0, 5.0, 8.0, 3.0])
+    potential = np.array([100.0, 93.0, 88.0, 86.0])          # falling: potential turned into motion and heat
+    stability.check_energy("s", kinetic, potential, scale=10.0, max_gain=0.1)
+
+
+def test_energy_growing_without_a_source_is_caught_with_frame():
+    kinetic = np.array([0.0, 5.0, 30.0, 1e6])                  # an integrator pumping energy in
+    potential = np.array([100.0, 95.0, 90.0, 90.0])
+    with pytest.raises(stability.BlowUp, match=r"frame 2: mechanical energy grew by 2 x the reference energy 10 J"):
+        stability.check_energy("s", kinetic, potential, scale=10.0, max_gain=0.1)
+    with pytest.raises(stability.BlowUp, match="frame 1: mechanical energy grew by inf"):
+        stability.check_energy("s", np.array([0.0, np.inf]), np.array([1.0, 1.0]), scale=1.0, max_gain=0.1)

@@ -34,7 +34,7 @@ def _json(value) -> str:
 
 
 # Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "runtime", "evaluate")
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "stability")
 
 
 def scene_config_json(wildcards) -> str:
@@ -171,3 +171,35 @@ def protocol_metrics(wildcards) -> list[str]:
 
 def protocol_metrics_per_step(wildcards) -> list[str]:
     return benchmark_protocols(wildcards, "metrics_per_step.csv")
+
+
+def stressed_ids(wildcards) -> list[str]:
+    """The test sims of the stability stress tests (the first stability.sims)."""
+    ids = test_ids(wildcards.scene)
+    if not ids:
+        raise ValueError(f"{wildcards.scene}: the sweep has no test sim to stress")
+    return ids[: CFG[wildcards.scene]["stability"]["sims"]]
+
+
+def stressed_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in stressed_ids(wildcards)]
+
+
+def stressed_packing(wildcards) -> str:
+    first = stressed_ids(wildcards)[0]
+    table = SWEEPS[wildcards.scene]
+    return f"results/{wildcards.scene}/packings/{table.loc[table['id'] == first, 'packing'].iloc[0]}"
+
+
+def stressed_row_json(wildcards) -> str:
+    table = SWEEPS[wildcards.scene]
+    row = table[table["id"] == stressed_ids(wildcards)[0]].iloc[0].to_dict()
+    row.pop("split")
+    return _json(row)
+
+
+def stability_args(wildcards) -> dict:
+    s = CFG[wildcards.scene]["stability"]
+    return {"factors": " ".join(f"{f:g}" for f in s["dem_dt_factors"]),
+            "lengths": " ".join(str(n) for n in s["rollout_lengths"]),
+            "noise": s["history_noise"], "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}

@@ -1,0 +1,55 @@
+"""DEM stress test: one sim of the sweep at time steps that are multiples of the stable limit.
+
+Each run goes through the same ``simulate`` as the dataset (and so through every blow-up
+detector of :mod:`generators.stability`); a run that blows up must name the sim, the frame and
+the cause, and leave nothing behind. The raw output of the runs is scratch: only the report is
+kept.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from generators import stability
+
+
+def engine(scene: str):
+    """The module that settles and simulates ``scene`` (``simulate``, ``read_raw``)."""
+    if scene == "slide":
+        from generators.lammps import slide as lammps_slide
+        return lammps_slide
+    raise ValueError(f"no DEM engine for scene {scene!r}; known: slide")
+
+
+def dem_time_steps(scene: str, row: dict, packing: Path, factors: list[float], scratch: Path) -> pd.DataFrame:
+    """One report row per factor f: the sim run with dt = f x stable limit (``dt_safety = f``, no
+    refusal: finding the unstable steps is the point), stable or blown up, with frame and cause."""
+    dem = engine(scene)
+    scratch = Path(scratch)
+    rows = []
+    for factor in factors:
+        out = scratch / f"dt_x{factor:g}"
+        start = time.perf_counter()
+        record = {"test": "dem_time_step", "sim": row["id"], "setting": f"dt = {factor:g} x stable limit",
+                  "factor": float(factor)}
+        try:
+            meta = dem.simulate({**row, "dt": None, "dt_safety": float(factor)}, packing, out)
+            raw = dem.read_raw(out)
+            kinematic = np.asarray(raw["kinematic"], bool)
+            record.update(stable=True, frame=np.nan, cause="", dt=meta["dt"], dt_limit=meta["dt_limit"],
+                          steps_per_frame=meta["steps_per_frame"],
+                          max_overlap=max(stability.max_overlap_fraction(x, raw["radius"], kinematic)
+                                          for x in raw["position"]))
+        except stability.BlowUp as exc:
+            record.update(stable=False, frame=exc.frame, cause=exc.cause)
+        record["wall_seconds"] = time.perf_counter() - start
+        record["left_behind"] = int(out.exists() and not record["stable"]) + sum(
+            1 for p in scratch.glob(f".dt_x{factor:g}*"))          # a failed run must leave no folder, no temporary
+        rows.append(record)
+        shutil.rmtree(out, ignore_errors=True)
+    return pd.DataFrame(rows)

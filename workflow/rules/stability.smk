@@ -1,0 +1,52 @@
+# Stage stability: stress tests of the DEM (time step at multiples of the stable limit) and of the
+# surrogate (long rollouts from a perturbed history, three precisions) on the first test sims.
+rule stability_dem:
+    input:
+        packing=stressed_packing,
+    output:
+        "results/{scene}/stability/dem.csv",
+    params:
+        sim=stressed_row_json,
+        args=stability_args,
+    threads: 1
+    log:
+        "results/{scene}/logs/stability_dem.log",
+    benchmark:
+        "results/{scene}/benchmarks/stability_dem.tsv"
+    shell:
+        "graphdem stability-dem --scene {wildcards.scene} --sim {params.sim:q} --packing {input.packing} "
+        "--factors {params.args[factors]} --out {output} > {log} 2>&1"
+
+
+rule stability_surrogate:
+    input:
+        checkpoint="results/{scene}/model/best.pt",
+        sims=stressed_sims,
+    output:
+        "results/{scene}/stability/surrogate.csv",
+    params:
+        runtime=runtime_json,
+        args=stability_args,
+    threads: 1
+    log:
+        "results/{scene}/logs/stability_surrogate.log",
+    benchmark:
+        "results/{scene}/benchmarks/stability_surrogate.tsv"
+    shell:
+        "graphdem stability-surrogate --checkpoint {input.checkpoint} --data {input.sims} "
+        "--runtime-json {params.runtime:q} --lengths {params.args[lengths]} --noise {params.args[noise]} "
+        "--seed {params.args[seed]} --max-overlap {params.args[max_overlap]} --out {output} > {log} 2>&1"
+
+
+rule stability:
+    input:
+        dem="results/{scene}/stability/dem.csv",
+        surrogate="results/{scene}/stability/surrogate.csv",
+    output:
+        report("results/{scene}/stability.csv", caption="../report/stability.rst", category="stability"),
+    log:
+        "results/{scene}/logs/stability.log",
+    benchmark:
+        "results/{scene}/benchmarks/stability.tsv"
+    shell:
+        "graphdem combine --union --tables {input.dem} {input.surrogate} --out {output} > {log} 2>&1"
