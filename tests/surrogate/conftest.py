@@ -31,3 +31,17 @@ def tiny_dataset(tmp_path_factory):
             "splits": root / "dataset" / "splits.csv", "model": model, "train": train,
             "split_table": pd.read_csv(root / "dataset" / "splits.csv"),
             "stats_json": json.dumps(stats)}
+
+
+@pytest.fixture
+def untrained(tiny_dataset):
+    """A freshly initialised (seed 0) simulator of the tiny dataset, in eval mode, and its first test sim."""
+    import torch
+
+    from surrogate.samples import load_sim
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    table = tiny_dataset["split_table"]
+    torch.manual_seed(0)
+    sim = load_sim(table.loc[table["split"] == "test", "path"].iloc[0], stats)
+    return LearnedSimulator(stats, tiny_dataset["model"]).eval(), sim

@@ -1,7 +1,6 @@
 """Runtime switches of a rollout: exact ones change nothing, sleeping holds only particles at rest."""
 
 import copy
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -9,8 +8,6 @@ import pytest
 import torch
 
 from surrogate import rollout, runtime
-from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 
@@ -21,17 +18,8 @@ def prepared(simulator, rt):
     return runtime.apply(copy.deepcopy(simulator), rt)
 
 
-@pytest.fixture(scope="module")
-def simulator_and_sim(tiny_dataset):
-    stats = json.loads(tiny_dataset["stats_json"])
-    table = tiny_dataset["split_table"]
-    torch.manual_seed(0)
-    sim = load_sim(table.loc[table["split"] == "test", "path"].iloc[0], stats)
-    return LearnedSimulator(stats, tiny_dataset["model"]).eval(), sim
-
-
-def test_exact_switches_leave_the_rollout_unchanged(simulator_and_sim):
-    simulator, sim = simulator_and_sim
+def test_exact_switches_leave_the_rollout_unchanged(untrained):
+    simulator, sim = untrained
     reference = rollout.rollout(prepared(simulator, PLAIN), sim, runtime=PLAIN)
     fast = replace(PLAIN, split_edge_mlp=True, prune_isolated=True)
     result = rollout.rollout(prepared(simulator, fast), sim, runtime=fast)
@@ -41,8 +29,8 @@ def test_exact_switches_leave_the_rollout_unchanged(simulator_and_sim):
     assert result.timing["edges_per_step"] < reference.timing["edges_per_step"]
 
 
-def test_float32_and_bfloat16_rollouts_stay_close_to_float64(simulator_and_sim):
-    simulator, sim = simulator_and_sim
+def test_float32_and_bfloat16_rollouts_stay_close_to_float64(untrained):
+    simulator, sim = untrained
     reference = rollout.rollout(prepared(simulator, PLAIN), sim, runtime=PLAIN).position
     spread = np.abs(reference[-1] - reference[0]).max()
     for precision, tolerance in (("float32", 1e-4), ("bfloat16", 0.1)):
@@ -75,8 +63,8 @@ def two_clusters(simulator, sim):
     return replace(sim, position=frames), fast, rest, near
 
 
-def test_sleeping_particles_hold_still_and_wake_near_motion(simulator_and_sim):
-    simulator, sim = simulator_and_sim
+def test_sleeping_particles_hold_still_and_wake_near_motion(untrained):
+    simulator, sim = untrained
     crafted, fast, rest, near = two_clusters(simulator, sim)
     rt = replace(PLAIN, prune_isolated=True, sleep_speed=1e-3)
     result = rollout.rollout(prepared(simulator, rt), crafted, runtime=rt)

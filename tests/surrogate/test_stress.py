@@ -1,6 +1,5 @@
 """Surrogate stress tests: blow-ups, escapes and precision are detected and reported, not hidden."""
 
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -8,20 +7,10 @@ import pytest
 import torch
 
 from surrogate import runtime, stress
-from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 
 RT = runtime.Runtime(split_edge_mlp=True, prune_isolated=True, precision="float32", sleep_speed=None)
-
-
-def simulator_and_sim(tiny):
-    stats = json.loads(tiny["stats_json"])
-    table = tiny["split_table"]
-    torch.manual_seed(0)
-    sim = load_sim(table.loc[table["split"] == "test", "path"].iloc[0], stats)
-    return LearnedSimulator(stats, tiny["model"]).eval(), sim
 
 
 def test_error_growth_is_the_geometric_mean_ratio_per_step():
@@ -29,8 +18,8 @@ def test_error_growth_is_the_geometric_mean_ratio_per_step():
     assert np.isnan(stress.error_growth(np.array([0.0, 1.0])))
 
 
-def test_a_clean_long_rollout_is_not_flagged(tiny_dataset):
-    simulator, sim = simulator_and_sim(tiny_dataset)
+def test_a_clean_long_rollout_is_not_flagged(untrained):
+    simulator, sim = untrained
     with torch.no_grad():
         simulator.acceleration_std.mul_(1e-6)            # a model that predicts (almost) free flight
         simulator.acceleration_mean.zero_()
@@ -41,8 +30,8 @@ def test_a_clean_long_rollout_is_not_flagged(tiny_dataset):
     assert row["n_frames"] == 3 * sim.n_frames and row["final_max_speed"] < 1e-3
 
 
-def test_escaping_particles_are_counted_with_the_first_frame(tiny_dataset):
-    simulator, sim = simulator_and_sim(tiny_dataset)
+def test_escaping_particles_are_counted_with_the_first_frame(untrained):
+    simulator, sim = untrained
     with torch.no_grad():
         simulator.acceleration_std.mul_(1e-6)
         simulator.acceleration_mean.copy_(torch.tensor([3.0, 0.0]))   # every particle accelerates in +x
@@ -52,16 +41,16 @@ def test_escaping_particles_are_counted_with_the_first_frame(tiny_dataset):
     assert row["mse_growth_per_step"] > 1
 
 
-def test_a_non_finite_rollout_is_named(tiny_dataset):
-    simulator, sim = simulator_and_sim(tiny_dataset)
+def test_a_non_finite_rollout_is_named(untrained):
+    simulator, sim = untrained
     with torch.no_grad():
         simulator.acceleration_std.fill_(float("inf"))
     row = stress.long_rollout(simulator, RT, sim, 2, 0.0, 0, max_overlap=0.5)
     assert not row["stable"] and row["nonfinite_frame"] == simulator.history and "non-finite" in row["cause"]
 
 
-def test_precision_rows_compare_with_float64(tiny_dataset):
-    simulator, sim = simulator_and_sim(tiny_dataset)
+def test_precision_rows_compare_with_float64(untrained):
+    simulator, sim = untrained
     rows = {r["setting"]: r for r in stress.precision_rows(simulator, RT, sim)}
     assert rows["float64"]["max_difference_vs_float64"] == 0
     assert 0 < rows["float32"]["max_difference_vs_float64"] < 1e-3
