@@ -5,6 +5,7 @@
 #   snakemake -c2 results/slide/metrics.csv --config slide='{young: 5.0e9}'
 #   snakemake -c2 --forcerun train results/slide/metrics.csv       # rerun one stage
 #   snakemake -c2 results/slide/dataset/stats.json                 # stop after a stage
+#   snakemake -c2 results/slide/benchmark.csv                      # run time against error
 #   snakemake -c2 results/slide/stability.csv                      # stress tests (docs/performance.md)
 #   snakemake -c2 results/slide_samer/metrics.csv --config solidgn_root=/path/to/solidgn   # Table 6
 #
@@ -31,6 +32,7 @@ include: "workflow/rules/train.smk"
 include: "workflow/rules/rollout.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/stability.smk"
+include: "workflow/rules/benchmark.smk"
 
 
 rule all:

@@ -206,6 +206,54 @@ def cmd_stability_surrogate(args) -> None:
     print(table.drop(columns=["cause"]).to_string(index=False))
 
 
+def _write_rows(rows: list[dict], out: Path) -> None:
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    with atomic_path(out) as tmp:
+        pd.DataFrame(rows).to_csv(tmp, index=False)
+
+
+def cmd_benchmark_dem(args) -> None:
+    from surrogate import benchmark
+    rows = args.sims
+    packings = [Path(args.packings) / row["packing"] for row in rows]
+    result = benchmark.dem_contender(args.name, args.variant, args.scene, rows, packings, args.truth, args.history,
+                                     args.repeats)
+    _write_rows([result], args.out)
+    print(json.dumps(result, indent=1, default=str))
+
+
+def cmd_benchmark_surrogate(args) -> None:
+    from surrogate import benchmark, runtime
+    if args.runtime_json is None:
+        raise SystemExit("graphdem benchmark-surrogate: --runtime-json is required (the scene's runtime config)")
+    result = benchmark.surrogate_contender(args.name, args.variant, args.checkpoint,
+                                           runtime.Runtime.from_config(args.runtime_json), args.data,
+                                           args.repeats, args.threads)
+    _write_rows([result], args.out)
+    print(json.dumps(result, indent=1, default=str))
+
+
+def cmd_benchmark_report(args) -> None:
+    import numpy as np
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    from surrogate import benchmark, plots
+    contenders = pd.concat([pd.read_csv(p) for p in args.tables], ignore_index=True)
+    settling = [json.loads((Path(p) / "run.json").read_text())["wall_time"] for p in args.packings or []]
+    table = benchmark.report(contenders, args.main, args.reference, float(np.mean(settling)) if settling else None)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    plots.pareto(table, args.plot, args.title)
+    main = table[table["main"].astype(bool)].iloc[0]
+    print(f"{args.out}: {len(table)} rows; {main['contender']}: {main['seconds_per_frame'] * 1000:.2f} ms per frame, "
+          f"{main['speedup_vs_reference']:.1f}x faster than the DEM reference, "
+          f"{main['speedup_vs_matched_dem']:.1f}x faster than {main['matched_dem']} (the fastest DEM at least as "
+          f"accurate), break-even at {main['break_even_substeps']:.0f} DEM sub-steps per frame")
+
+
 def cmd_import_solidgn(args) -> None:
     from generators.solidgn import convert
     limits = {}
@@ -369,6 +417,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-overlap", type=float, required=True, help="overlap limit (fraction of the smaller radius)")
     p.add_argument("--out", type=Path, required=True, help="CSV report")
     p.set_defaults(func=cmd_stability_surrogate)
+
+    p = sub.add_parser("benchmark-dem", help="time and score one DEM contender (changed time step or stiffness)",
+                       description="Rerun the DEM on the sims of --sims (their settled packings) with the changes "
+                                   "of --variant (dt_factor, stiffness_factor), --repeats times each; time the "
+                                   "recorded window (LAMMPS loop time) and score against --truth. One CSV row.")
+    p.add_argument("--scene", choices=SCENES, required=True)
+    p.add_argument("--name", required=True, help="the contender's name")
+    p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"dt_factor": 2}')
+    p.add_argument("--sims", type=_json, required=True, help="the sims' sweep rows (JSON list)")
+    p.add_argument("--packings", type=Path, required=True, help="folder of the settled packings")
+    p.add_argument("--truth", type=Path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
+    p.add_argument("--history", type=int, required=True, help="K: frames not scored (the surrogate's input)")
+    p.add_argument("--repeats", type=int, required=True)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_benchmark_dem)
+
+    p = sub.add_parser("benchmark-surrogate", help="time and score one surrogate contender",
+                       description="Roll the checkpoint out on --data with the runtime switches of --runtime-json "
+                                   "changed by --variant (and, with latent/hidden/message_passing in it, an "
+                                   "untrained model of that size, timed only): one warm-up, then the median of "
+                                   "--repeats. One CSV row.")
+    _checkpoint_and_data(p)
+    p.add_argument("--name", required=True, help="the contender's name")
+    p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"precision": "bfloat16"}')
+    p.add_argument("--repeats", type=int, required=True)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_benchmark_surrogate)
+
+    p = sub.add_parser("benchmark-report", help="benchmark.csv and the Pareto plot from the contenders' rows")
+    p.add_argument("--tables", type=Path, nargs="+", required=True, help="one CSV per contender")
+    p.add_argument("--main", required=True, help="the surrogate contender of the headline figures")
+    p.add_argument("--reference", required=True, help="the DEM reference contender")
+    p.add_argument("--packings", type=Path, nargs="*", help="packing folders (their settling time is reported)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--plot", type=Path, required=True)
+    p.add_argument("--title", default="run time against error")
+    p.set_defaults(func=cmd_benchmark_report)
 
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "

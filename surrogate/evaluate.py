@@ -109,6 +109,28 @@ def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray,
                          "truth": np.nan if truth is None else truth, "prediction": prediction})
 
 
+def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[str, np.ndarray], history: int,
+          body_displacement: float | None = None) -> list[pd.DataFrame]:
+    """Per-step rows of sim ``sim``: rollout MSE and the scene's metrics of every prediction
+    (method name -> [T, N, D]) over the frames after the first ``history``."""
+    scene = str(traj.parameters.get("scene", "unknown"))
+    moving = ~np.asarray(traj.kinematic, bool)
+    metrics = SCENES[scene](traj.kinematic, traj.radius, body_displacement) if scene in SCENES else None
+    truth_values = metrics(truth) if metrics else {}
+    rows = []
+    for method, prediction in predictions.items():
+        rows.append(_per_step(scene, method, sim, MSE, traj.time, None,
+                              rollout_mse(prediction, truth, moving, history), history))
+        if metrics is None:
+            continue
+        for name, values in metrics(prediction).items():
+            rows.append(_per_step(scene, method, sim, name, traj.time, truth_values[name][history:],
+                                  values[history:], history))
+        for name, values in metrics.compare(prediction, truth).items():
+            rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history))
+    return rows
+
+
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, threads: int = 1, progress: bool = True,
              split: str = "test", split_note: str = "", runtime: Runtime | None = None
@@ -150,20 +172,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
         if bad is not None:
             log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
         sims.append(entry)
-        scene = str(traj.parameters.get("scene", "unknown"))
-        moving = ~np.asarray(traj.kinematic, bool)
-        metrics = SCENES[scene](traj.kinematic, traj.radius, body_displacement) if scene in SCENES else None
-        truth_values = metrics(truth) if metrics else {}
-        for method, prediction in entry.predictions.items():
-            per_step.append(_per_step(scene, method, sim.id, MSE, traj.time, None,
-                                      rollout_mse(prediction, truth, moving, history), history))
-            if metrics is None:
-                continue
-            for name, values in metrics(prediction).items():
-                per_step.append(_per_step(scene, method, sim.id, name, traj.time, truth_values[name][history:],
-                                          values[history:], history))
-            for name, values in metrics.compare(prediction, truth).items():
-                per_step.append(_per_step(scene, method, sim.id, name, traj.time, None, values[history:], history))
+        per_step.extend(score(sim.id, traj, truth, entry.predictions, history, body_displacement))
     if not sims:
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)

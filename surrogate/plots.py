@@ -88,3 +88,33 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
         anim.save(tmp, writer=PillowWriter(fps=fps), dpi=70)
     plt.close(fig)
     return path
+
+
+def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
+    """Time per rollout (log) against rollout MSE for every scored contender, Pareto front joined.
+
+    The DEM reference has MSE 0 by definition: it sits on the x axis of a symlog error scale."""
+    scored = table[table["mse"].notna() & table["seconds_per_rollout"].notna()]
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    markers = {"dem": dict(marker="s", color="#1f5fa8"), "surrogate": dict(marker="o", color="#d43d2a")}
+    for kind, part in scored.groupby("kind"):
+        ax.scatter(part["seconds_per_rollout"], part["mse"], s=42, label={"dem": "DEM", "surrogate": "Graph-DEM"}[kind],
+                   zorder=3, **markers[kind])
+        for row in part.itertuples():
+            ax.annotate(row.contender, (row.seconds_per_rollout, row.mse), textcoords="offset points",
+                        xytext=(5, 4), fontsize=7.5)
+    front = scored[scored["on_pareto_front"].astype(bool)].sort_values("seconds_per_rollout")
+    ax.step(front["seconds_per_rollout"], front["mse"], where="post", color="black", lw=1.0, alpha=0.7,
+            label="Pareto front", zorder=2)
+    ax.set_xscale("log")
+    positive = scored.loc[scored["mse"] > 0, "mse"]
+    ax.set_yscale("symlog", linthresh=float(positive.min()) if len(positive) else 1.0)
+    ax.set_xlabel("wall time per rollout (s, log)")
+    ax.set_ylabel("rollout MSE against the DEM data (m$^2$)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130)
+    plt.close(fig)
+    return Path(path)

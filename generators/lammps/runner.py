@@ -6,6 +6,7 @@ import os
 import shlex
 import shutil
 import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from importlib import resources
@@ -29,6 +30,7 @@ class Run:
     command: str
     version: str
     wall_time: float
+    max_rss_mb: float = float("nan")     # peak resident memory of the LAMMPS process
 
 
 def executable() -> str:
@@ -54,11 +56,17 @@ def run(template_name: str, variables: dict[str, object], workdir: Path,
     for key, value in variables.items():
         cmd += ["-var", key, f"{value:.12g}" if isinstance(value, float) else str(value)]
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    start = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - start
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=workdir, env=env, stdout=out, stderr=err, text=True)
+        _, status, usage = os.wait4(proc.pid, 0)          # this child's own peak memory, not the session's
+        wall = time.perf_counter() - start
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        stdout, stderr = out.read(), err.read()
     log = workdir / log_name
     if proc.returncode != 0:
-        message = io.error_message(log, proc.stderr + proc.stdout) or proc.stderr[-500:]
+        message = io.error_message(log, stderr + stdout) or stderr[-500:]
         raise LammpsError(f"LAMMPS failed ({message})", io.last_step(log))
-    return Run(command=shlex.join(cmd), version=io.version(log), wall_time=wall)
+    return Run(command=shlex.join(cmd), version=io.version(log), wall_time=wall, max_rss_mb=usage.ru_maxrss / 1024)

@@ -126,6 +126,7 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
             "dt_limit": var["_dt_limit"], "steps_per_frame": every, "n_steps": nstart + nsteps,
             "record_start_step": nstart,
             "window_seconds": window_seconds, "window_steps": window_steps,   # the recorded window's loop time
+            "max_rss_mb": run.max_rss_mb,
             "frame_interval": every * var["dt"], "packing": str(packing_dir),
             "kinetic_energy": (thermo["c_ke"] + thermo["c_erot"]).tolist() if len(thermo) else [],
         }

@@ -34,7 +34,7 @@ def _json(value) -> str:
 
 
 # Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "stability")
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "benchmark", "stability")
 
 
 def scene_config_json(wildcards) -> str:
@@ -203,3 +203,46 @@ def stability_args(wildcards) -> dict:
     return {"factors": " ".join(f"{f:g}" for f in s["dem_dt_factors"]),
             "lengths": " ".join(str(n) for n in s["rollout_lengths"]),
             "noise": s["history_noise"], "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
+
+
+def benchmarked_ids(wildcards) -> list[str]:
+    """The test sims the benchmark times (the first benchmark.sims)."""
+    ids = test_ids(wildcards.scene)
+    if not ids:
+        raise ValueError(f"{wildcards.scene}: the sweep has no test sim to benchmark")
+    return ids[: CFG[wildcards.scene]["benchmark"]["sims"]]
+
+
+def benchmarked_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in benchmarked_ids(wildcards)]
+
+
+def benchmarked_rows_json(wildcards) -> str:
+    table = SWEEPS[wildcards.scene]
+    rows = [table[table["id"] == i].iloc[0].to_dict() for i in benchmarked_ids(wildcards)]
+    for row in rows:
+        row.pop("split")
+    return _json(rows)
+
+
+def benchmarked_packings(wildcards) -> list[str]:
+    table = SWEEPS[wildcards.scene]
+    keys = dict.fromkeys(table.loc[table["id"].isin(benchmarked_ids(wildcards)), "packing"])
+    return [f"results/{wildcards.scene}/packings/{k}" for k in keys]
+
+
+def contender_json(kind: str):
+    """Input function: the changes of one benchmark contender of ``kind`` (dem or surrogate)."""
+    def changes(wildcards) -> str:
+        contenders = CFG[wildcards.scene]["benchmark"][kind]
+        if wildcards.contender not in contenders:
+            raise ValueError(f"{wildcards.scene}: no {kind} contender {wildcards.contender!r} in "
+                             f"benchmark.{kind}; configured: {sorted(contenders)}")
+        return _json(contenders[wildcards.contender])
+    return changes
+
+
+def contender_tables(wildcards) -> list[str]:
+    b = CFG[wildcards.scene]["benchmark"]
+    return [f"results/{wildcards.scene}/benchmark/{kind}/{name}.csv" for kind in ("dem", "surrogate")
+            for name in b[kind]]

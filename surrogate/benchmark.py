@@ -1,0 +1,191 @@
+"""Run time against error (docs/performance.md): DEM contenders and surrogate contenders, timed
+the same way on the same test sims, scored with the same metrics against the dataset.
+
+* A DEM contender reruns the engine on the sims' own settled packings with changed settings
+  (``dt_factor`` multiplies the time step, ``stiffness_factor`` the Young's modulus, the time
+  step following the stable limit). Its time is LAMMPS' loop time of the recorded window only:
+  neither the run-up before the first frame nor the settling (reported on its own row) counts.
+* A surrogate contender rolls the trained checkpoint out with other runtime switches; a contender
+  with sizes (``latent``, ``hidden``, ``message_passing``) is an untrained model of that size,
+  timed only (its error is not reported). One untimed warm-up rollout per sim comes first.
+
+Every contender's time is the median of ``repeats`` runs per sim, averaged over the sims.
+Particle-frames per second count moving particles times predicted frames.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import resource
+import statistics
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from generators import convert, h5md, stability, stress
+from surrogate import checkpoint
+from surrogate import runtime as rt
+from surrogate.evaluate import MSE, score, summarise
+from surrogate.rollout import rollout
+from surrogate.samples import load_sim
+from surrogate.simulator import LearnedSimulator
+
+SIZE_KEYS = ("latent", "hidden", "message_passing")
+DEM_KEYS = ("dt_factor", "stiffness_factor")
+
+
+def _peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _scores(name: str, sims: list[tuple[str, h5md.Trajectory, np.ndarray]], history: int) -> dict:
+    """MSE and Acc per scene metric of one contender's predictions over the sims."""
+    steps = [rows for sim_id, traj, prediction in sims
+             for rows in score(sim_id, traj, np.asarray(traj.position, np.float64), {name: prediction}, history)]
+    table = summarise(pd.concat(steps, ignore_index=True))
+    table = table[table["sim"] == "all"]
+    out = {"mse": float(table.loc[table["metric"] == MSE, "mse"].iloc[0])}
+    for row in table.itertuples():
+        if pd.notna(row.acc_percent):
+            out[f"acc_{row.metric}"] = float(row.acc_percent)
+    return out
+
+
+def dem_row(row: dict, variant: dict) -> dict:
+    """The sweep row of a DEM contender: the time step times ``dt_factor`` (through dt_safety) and
+    the stiffness times ``stiffness_factor`` (the step follows the stable limit, which scales as
+    1/sqrt(stiffness))."""
+    unknown = set(variant) - set(DEM_KEYS)
+    if unknown:
+        raise ValueError(f"DEM contender: unknown keys {sorted(unknown)}; allowed: {', '.join(DEM_KEYS)}")
+    if row.get("dt") is not None:
+        raise ValueError("DEM contenders scale dt_safety: the scene must not fix an explicit dt")
+    return {**row, "dt_safety": row["dt_safety"] * float(variant.get("dt_factor", 1.0)),
+            "young": row["young"] * float(variant.get("stiffness_factor", 1.0))}
+
+
+def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packings: list[Path],
+                  truths: list[Path], history: int, repeats: int) -> dict:
+    """Time and score one DEM contender on the sims of ``rows`` (truth in ``truths``)."""
+    engine = stress.engine(scene)
+    seconds, wall, steps_per_frame, peak, scored, frames, moving = [], [], [], [], [], 0, 0
+    blown = []
+    for row, packing, truth_path in zip(rows, packings, truths, strict=True):
+        truth = h5md.read(truth_path)
+        runs = []
+        with tempfile.TemporaryDirectory(prefix="graphdem-bench-") as scratch:
+            for repeat in range(repeats):
+                out = Path(scratch) / f"raw{repeat}"
+                try:
+                    meta = engine.simulate(dem_row(row, variant), packing, out)
+                except stability.BlowUp as exc:
+                    blown.append(f"{exc}")
+                    break
+                runs.append(meta)
+            if len(runs) < repeats:
+                continue
+            h5 = convert.convert(scene, Path(scratch) / "raw0", Path(scratch) / "run.h5")
+            prediction = np.asarray(h5md.read(h5).position, np.float64)
+        seconds.append(statistics.median(m["window_seconds"] for m in runs))
+        wall.append(statistics.median(m["wall_time"] for m in runs))
+        steps_per_frame.append(runs[0]["steps_per_frame"])
+        peak.append(max(m["max_rss_mb"] for m in runs))
+        scored.append((row["id"], truth, prediction))
+        frames = truth.n_frames - history
+        moving = int((~np.asarray(truth.kinematic, bool)).sum())
+    out = {"contender": name, "kind": "dem", "settings": json.dumps(variant, sort_keys=True), "trained": True,
+           "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored)}
+    if not scored:
+        return out
+    per_rollout = float(np.mean(seconds)) * frames / (frames + history - 1)   # the predicted frames' share
+    out.update(seconds_per_rollout=per_rollout, seconds_per_frame=per_rollout / frames,
+               particle_frames_per_second=moving * frames / per_rollout, peak_rss_mb=max(peak),
+               dem_steps_per_frame=float(np.mean(steps_per_frame)),
+               seconds_per_dem_step=float(np.mean(seconds)) / ((frames + history - 1)
+                                                               * float(np.mean(steps_per_frame))),
+               wall_seconds_per_run=float(np.mean(wall)))
+    out.update(_scores(name, scored, history))
+    return out
+
+
+def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: rt.Runtime, truths: list[Path],
+                        repeats: int, threads: int, seed: int = 0) -> dict:
+    """Time and score one surrogate contender (the trained checkpoint, or an untrained model of
+    other sizes when ``variant`` has size keys) on the sims ``truths``."""
+    torch.set_num_threads(max(1, int(threads)))
+    simulator, meta = checkpoint.simulator_from(checkpoint_path)
+    sizes = {k: variant[k] for k in SIZE_KEYS if k in variant}
+    switches = {k: v for k, v in variant.items() if k not in SIZE_KEYS}
+    runtime = rt.Runtime(**{**base.as_dict(), **switches})
+    trained = not sizes
+    if sizes:
+        torch.manual_seed(seed)
+        simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).eval()
+    simulator = rt.apply(copy.deepcopy(simulator), runtime)
+    props = list(meta["model"].get("properties") or [])
+    seconds, scored, frames, moving, blown = [], [], 0, 0, []
+    for path in truths:
+        traj = h5md.read(path)
+        sim = load_sim(path, meta["stats"], props, traj)
+        rollout(simulator, sim, runtime=runtime)                                   # warm-up, untimed
+        runs = [rollout(simulator, sim, runtime=runtime) for _ in range(repeats)]
+        if runs[0].first_nonfinite is not None:
+            blown.append(f"{sim.id} non-finite from frame {runs[0].first_nonfinite}")
+        seconds.append(statistics.median(r.seconds for r in runs))
+        scored.append((sim.id, traj, runs[0].position))
+        frames = sim.n_frames - simulator.history
+        moving = int((~sim.kinematic).sum())
+    per_rollout = float(np.mean(seconds))
+    out = {"contender": name, "kind": "surrogate", "settings": json.dumps(variant, sort_keys=True),
+           "trained": trained, "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored),
+           "seconds_per_rollout": per_rollout, "seconds_per_frame": per_rollout / frames,
+           "particle_frames_per_second": moving * frames / per_rollout, "peak_rss_mb": _peak_rss_mb(),
+           "threads": int(threads), "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
+           "parameters": sum(p.numel() for p in simulator.parameters())}
+    if trained:
+        out.update(_scores(name, scored, simulator.history))
+    return out
+
+
+def pareto_front(table: pd.DataFrame) -> pd.Series:
+    """True for contenders that no other contender beats in both time per rollout and MSE."""
+    scored = table["mse"].notna() & table["seconds_per_rollout"].notna() & table["stable"].astype(bool)
+    front = pd.Series(False, index=table.index)
+    for i in table.index[scored]:
+        t, e = table.at[i, "seconds_per_rollout"], table.at[i, "mse"]
+        others = table[scored & (table.index != i)]
+        dominated = ((others["seconds_per_rollout"] <= t) & (others["mse"] <= e)
+                     & ((others["seconds_per_rollout"] < t) | (others["mse"] < e))).any()
+        front[i] = not dominated
+    return front
+
+
+def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds: float | None) -> pd.DataFrame:
+    """benchmark.csv: every contender with its Pareto flag, the speed-up over the DEM reference and
+    the break-even number of DEM sub-steps per frame (surrogate rows), plus the settling row."""
+    table = contenders.reset_index(drop=True).copy()
+    ref = table[table["contender"] == reference]
+    if ref.empty or pd.isna(ref["seconds_per_rollout"].iloc[0]):
+        raise ValueError(f"the DEM reference contender {reference!r} is missing or blew up")
+    ref = ref.iloc[0]
+    table["on_pareto_front"] = pareto_front(table)
+    table["speedup_vs_reference"] = ref["seconds_per_rollout"] / table["seconds_per_rollout"]
+    surrogate = table["kind"] == "surrogate"
+    per_step = ref["seconds_per_dem_step"]
+    table.loc[surrogate, "break_even_substeps"] = table.loc[surrogate, "seconds_per_frame"] / per_step
+    dem = table[(table["kind"] == "dem") & table["mse"].notna()]
+    for i in table.index[surrogate & table["mse"].notna()]:
+        matched = dem[dem["mse"] <= table.at[i, "mse"]]                 # DEM at least as accurate
+        fastest = matched.loc[matched["seconds_per_rollout"].idxmin()]
+        table.at[i, "matched_dem"] = fastest["contender"]
+        table.at[i, "speedup_vs_matched_dem"] = fastest["seconds_per_rollout"] / table.at[i, "seconds_per_rollout"]
+    table["main"] = table["contender"] == main
+    if settling_seconds is not None:
+        table = pd.concat([table, pd.DataFrame([{
+            "contender": "dem_settling", "kind": "dem_settling", "settings": "prepare stage, once per packing",
+            "trained": True, "stable": True, "wall_seconds_per_run": settling_seconds}])], ignore_index=True)
+    return table
