@@ -175,6 +175,9 @@ def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds
     table["on_pareto_front"] = pareto_front(table)
     table["speedup_vs_reference"] = ref["seconds_per_rollout"] / table["seconds_per_rollout"]
     surrogate = table["kind"] == "surrogate"
+    table["break_even_substeps"] = np.nan
+    table["matched_dem"] = ""
+    table["speedup_vs_matched_dem"] = np.nan
     per_step = ref["seconds_per_dem_step"]
     table.loc[surrogate, "break_even_substeps"] = table.loc[surrogate, "seconds_per_frame"] / per_step
     dem = table[(table["kind"] == "dem") & table["mse"].notna()]
@@ -187,5 +190,6 @@ def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds
     if settling_seconds is not None:
         table = pd.concat([table, pd.DataFrame([{
             "contender": "dem_settling", "kind": "dem_settling", "settings": "prepare stage, once per packing",
-            "trained": True, "stable": True, "wall_seconds_per_run": settling_seconds}])], ignore_index=True)
+            "trained": True, "stable": True, "wall_seconds_per_run": settling_seconds, "main": False}])],
+            ignore_index=True)
     return table

@@ -36,7 +36,7 @@ def planned(proc) -> dict[str, int]:
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     wd = tmp_path_factory.mktemp("wf")
-    proc = snakemake(wd, TARGET, "-c2")
+    proc = snakemake(wd, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-c2")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return wd
 
@@ -74,6 +74,42 @@ def test_surrogate_stage_outputs(workdir):
     assert (res / "plots" / "rollout.gif").stat().st_size > 10_000
     for stage in ("train", "evaluate"):
         assert (res / "benchmarks" / f"{stage}.tsv").is_file() and (res / "logs" / f"{stage}.log").is_file()
+
+
+def test_benchmark_stage_outputs(workdir):
+    import pandas as pd
+    res = workdir / "results" / "slide"
+    table = pd.read_csv(res / "benchmark.csv").set_index("contender")
+    # the reference rerun of the DEM reproduces the data bit for bit (one thread, same inputs)
+    assert table.at["reference", "mse"] == 0.0 and table.at["reference", "acc_Max Ht"] == 100.0
+    assert table.at["dt_x2", "dem_steps_per_frame"] == pytest.approx(table.at["reference", "dem_steps_per_frame"] / 2,
+                                                                    abs=1)
+    assert table.at["dt_x2", "mse"] > 0
+    main = table.loc["graphdem"]
+    assert main["main"] and main["speedup_vs_reference"] > 0 and main["break_even_substeps"] > 0
+    assert main["matched_dem"] in table.index
+    # exact switches: same error with and without them
+    assert table.at["no_skipping", "mse"] == pytest.approx(main["mse"], rel=1e-4)
+    assert pd.isna(table.at["article_size", "mse"]) and not table.at["article_size", "trained"]
+    assert table["on_pareto_front"].fillna(False).astype(bool).any()
+    assert (res / "plots" / "pareto.png").stat().st_size > 10_000
+    assert (res / "benchmarks" / "benchmark" / "dem_reference.tsv").is_file()
+    assert (res / "logs" / "benchmark" / "surrogate_graphdem.log").is_file()
+
+
+def test_stability_stage_outputs(workdir):
+    import pandas as pd
+    res = workdir / "results" / "slide"
+    table = pd.read_csv(res / "stability.csv")
+    first_test = pd.read_csv(res / "dataset" / "splits.csv").query("split == 'test'")["id"].iloc[0]
+    dem = table[table["test"] == "dem_time_step"].set_index("factor")
+    assert dem.at[0.5, "stable"] and not dem.at[8.0, "stable"]
+    assert dem.at[8.0, "cause"] and dem.at[8.0, "sim"] == first_test and dem.at[8.0, "left_behind"] == 0
+    rollouts = table[table["test"] == "surrogate_long_rollout"]
+    assert sorted(rollouts["n_frames"]) == [40, 80]                 # 5x and 10x the 8 recorded frames
+    precision = table[table["test"] == "surrogate_precision"].set_index("setting")
+    assert precision.at["float64", "max_difference_vs_float64"] == 0
+    assert precision.at["float32", "max_difference_vs_float64"] < 1e-3
 
 
 def test_changed_learning_rate_retrains_but_reruns_no_engine(workdir):

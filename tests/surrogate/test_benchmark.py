@@ -1,0 +1,55 @@
+"""Run time against error: contender settings, the Pareto front and the headline ratios."""
+
+import pandas as pd
+import pytest
+
+from surrogate import benchmark
+
+
+def contenders():
+    return pd.DataFrame([
+        {"contender": "reference", "kind": "dem", "stable": True, "seconds_per_rollout": 10.0, "mse": 0.0,
+         "seconds_per_frame": 1.0, "seconds_per_dem_step": 0.001},
+        {"contender": "dt_x4", "kind": "dem", "stable": True, "seconds_per_rollout": 2.5, "mse": 0.5,
+         "seconds_per_frame": 0.25, "seconds_per_dem_step": 0.001},
+        {"contender": "soft", "kind": "dem", "stable": True, "seconds_per_rollout": 4.0, "mse": 3.0,
+         "seconds_per_frame": 0.4, "seconds_per_dem_step": 0.001},          # slower and worse than dt_x4
+        {"contender": "graphdem", "kind": "surrogate", "stable": True, "seconds_per_rollout": 0.5, "mse": 1.0,
+         "seconds_per_frame": 0.05},
+        {"contender": "blown", "kind": "dem", "stable": False, "seconds_per_rollout": float("nan"),
+         "mse": float("nan")},
+        {"contender": "untrained", "kind": "surrogate", "stable": True, "seconds_per_rollout": 0.1,
+         "mse": float("nan"), "seconds_per_frame": 0.01},
+    ])
+
+
+def test_pareto_front_keeps_only_undominated_scored_contenders():
+    front = benchmark.pareto_front(contenders())
+    assert list(front) == [True, True, False, True, False, False]
+
+
+def test_report_gives_speedups_and_break_even_substeps():
+    table = benchmark.report(contenders(), main="graphdem", reference="reference", settling_seconds=42.0)
+    main = table[table["main"]].iloc[0]
+    assert main["speedup_vs_reference"] == pytest.approx(20.0)
+    # the fastest DEM at least as accurate as the surrogate (MSE <= 1.0) is dt_x4, 2.5 s
+    assert main["matched_dem"] == "dt_x4" and main["speedup_vs_matched_dem"] == pytest.approx(5.0)
+    # 0.05 s per frame against 1 ms per DEM step: the DEM must take more than 50 steps per frame to be slower
+    assert main["break_even_substeps"] == pytest.approx(50.0)
+    settling = table[table["contender"] == "dem_settling"].iloc[0]
+    assert settling["wall_seconds_per_run"] == 42.0 and pd.isna(settling["seconds_per_rollout"])
+
+
+def test_report_needs_the_reference():
+    with pytest.raises(ValueError, match="DEM reference contender 'exact' is missing or blew up"):
+        benchmark.report(contenders(), main="graphdem", reference="exact", settling_seconds=None)
+
+
+def test_dem_contender_settings_scale_the_step_and_the_stiffness():
+    row = {"id": "s", "dt_safety": 0.01, "dt": None, "young": 1e9}
+    assert benchmark.dem_row(row, {"dt_factor": 4}) == {**row, "dt_safety": 0.04}
+    assert benchmark.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
+    with pytest.raises(ValueError, match=r"unknown keys \['dt'\]; allowed: dt_factor, stiffness_factor"):
+        benchmark.dem_row(row, {"dt": 1e-4})
+    with pytest.raises(ValueError, match="must not fix an explicit dt"):
+        benchmark.dem_row({**row, "dt": 1e-5}, {"dt_factor": 2})
