@@ -74,12 +74,12 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
     seconds_graph = time.perf_counter() - t0
     counts["nodes"] += len(index)
     counts["edges"] += sub_edges.shape[1]
+    moving = (~static[index]).nonzero().squeeze(1)       # only these are decoded and integrated
     with runtime.autocast():
-        acceleration = simulator(graph).to(window.dtype)
-    predicted = simulator.integrate(graph.window, acceleration)
+        acceleration = simulator(graph, decode=moving).to(window.dtype)
+    predicted = simulator.integrate(graph.window[:, moving], acceleration)
     nxt = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
-    moving = ~static[index]
-    nxt[index[moving]] = predicted[moving]
+    nxt[index[moving]] = predicted
     return nxt, seconds_graph
 
 

@@ -7,7 +7,8 @@ one's measured effect):
   (:class:`surrogate.model.updater.Updater`);
 * ``prune_isolated`` (exact): particles that are not predicted (kinematic, or asleep) and have no
   edge to a predicted one are left out of the graph. With no edge between two such particles, they
-  cannot influence any prediction, so dropping them changes nothing;
+  cannot influence any prediction, so dropping them changes nothing. The generator then decodes,
+  and the updater integrates, the predicted particles only;
 * ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network;
   positions are integrated in float32);
 * ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is

@@ -82,14 +82,14 @@ class LearnedSimulator(nn.Module):
         vel = (window[1:] - window[:-1]).transpose(0, 1)
         return (vel - self.velocity_mean) / self.velocity_std
 
-    def forward(self, graph: Graph) -> torch.Tensor:
-        """Normalised acceleration ``[N, D]`` of the next frame."""
+    def forward(self, graph: Graph, decode: torch.Tensor | None = None) -> torch.Tensor:
+        """Normalised acceleration ``[N, D]`` of the next frame (of the nodes ``decode`` only, when given)."""
         if graph.window.shape[0] != self.history:
             raise ValueError(f"the model takes a history of K = {self.history} frames, got {graph.window.shape[0]}")
         last = graph.window[-1]
         boundary = boundary_features(last, self.lower, self.upper, self.radius)
         return self.model(self.velocities(graph.window), graph.types, boundary, last, graph.edge_index,
-                          self.radius, graph.props)
+                          self.radius, graph.props, decode)
 
     def target(self, window: torch.Tensor, next_position: torch.Tensor) -> torch.Tensor:
         """Normalised acceleration that takes ``window`` to ``next_position``."""

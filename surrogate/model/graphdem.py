@@ -26,9 +26,11 @@ class GraphDEM(nn.Module):
         self.generator = MLP(latent, hidden, dim, layers, layer_norm=False)
 
     def forward(self, velocities: torch.Tensor, types: torch.Tensor, boundary: torch.Tensor, pos: torch.Tensor,
-                edge_index: torch.Tensor, radius: float, props: torch.Tensor | None = None) -> torch.Tensor:
+                edge_index: torch.Tensor, radius: float, props: torch.Tensor | None = None,
+                decode: torch.Tensor | None = None) -> torch.Tensor:
+        """Accelerations of every node, or only of the nodes ``decode`` (indices) when given."""
         v = self.node_constructor(velocities, types, boundary, props)
         e = self.edge_constructor(pos, edge_index, radius)
         for updater in self.processor:
             v, e = updater(v, e, edge_index)
-        return self.generator(v)
+        return self.generator(v if decode is None else v[decode])
