@@ -127,7 +127,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
         simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).eval()
     simulator = rt.apply(copy.deepcopy(simulator), runtime)
     props = list(meta["model"].get("properties") or [])
-    seconds, scored, frames, moving, blown = [], [], 0, 0, []
+    seconds, scored, frames, moving, blown, work, graph_share = [], [], 0, 0, [], [], []
     for path in truths:
         traj = h5md.read(path)
         sim = load_sim(path, meta["stats"], props, traj)
@@ -145,10 +145,28 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "seconds_per_rollout": per_rollout, "seconds_per_frame": per_rollout / frames,
            "particle_frames_per_second": moving * frames / per_rollout, "peak_rss_mb": _peak_rss_mb(),
            "threads": int(threads), "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
-           "parameters": sum(p.numel() for p in simulator.parameters())}
+           "parameters": sum(p.numel() for p in simulator.parameters()),
+           "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": float(np.mean(work)), "gflop_per_second": float(np.mean(work)) * frames / per_rollout}
     if trained:
         out.update(_scores(name, scored, simulator.history))
     return out
+
+
+def gflop_per_step(model: dict, dim: int, n_props: int, nodes: float, edges: float, split: bool) -> float:
+    """Floating-point operations (2 per multiply-add) of one Graph-DEM step on a graph of ``nodes``
+    and ``edges``: the matrix products of every MLP (biases, norms and gathers left out)."""
+    lat, hid, layers, k = int(model["latent"]), int(model["hidden"]), int(model["mlp_layers"]), int(model["history"])
+
+    def mlp(n_in: int, n_out: int) -> int:
+        return n_in * hid + (layers - 2) * hid * hid + hid * n_out
+
+    node_in = (k - 1) * dim + int(model["embed"]) + n_props + 2 * dim
+    first_edge = lat * hid if split else 3 * lat * hid
+    per_updater = (edges * (first_edge + (layers - 2) * hid * hid + hid * lat) + (2 * nodes * lat * hid if split else 0)
+                   + nodes * mlp(2 * lat, lat))
+    macs = nodes * mlp(node_in, lat) + edges * mlp(dim + 1, lat) + int(model["message_passing"]) * per_updater \
+        + nodes * mlp(lat, dim)
+    return 2.0 * macs / 1e9
 
 
 def pareto_front(table: pd.DataFrame) -> pd.Series:

@@ -53,3 +53,16 @@ def test_dem_contender_settings_scale_the_step_and_the_stiffness():
         benchmark.dem_row(row, {"dt": 1e-4})
     with pytest.raises(ValueError, match="must not fix an explicit dt"):
         benchmark.dem_row({**row, "dt": 1e-5}, {"dt_factor": 2})
+
+
+def test_operation_count_matches_the_article_size_model_by_hand():
+    model = {"latent": 128, "hidden": 128, "mlp_layers": 3, "history": 6, "embed": 16, "message_passing": 10}
+    nodes, edges = 700, 700 * 20
+    plain = benchmark.gflop_per_step(model, 2, 0, nodes, edges, split=False)
+    # per edge and updater: 384x128 + 128x128 + 128x128 multiply-adds, per node 256x128 + 2 x 128x128
+    updater = edges * (384 + 128 + 128) * 128 + nodes * (256 + 128 + 128) * 128
+    constructors = nodes * ((5 * 2 + 16 + 4) * 128 + 2 * 128 * 128) + edges * (3 * 128 + 2 * 128 * 128)
+    generator = nodes * (2 * 128 * 128 + 128 * 2)
+    assert plain == pytest.approx(2 * (10 * updater + constructors + generator) / 1e9)
+    split = benchmark.gflop_per_step(model, 2, 0, nodes, edges, split=True)
+    assert split == pytest.approx(plain - 2 * 10 * (edges * 256 * 128 - 2 * nodes * 128 * 128) / 1e9)
