@@ -146,7 +146,8 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "particle_frames_per_second": moving * frames / per_rollout, "peak_rss_mb": _peak_rss_mb(),
            "threads": int(threads), "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
            "parameters": sum(p.numel() for p in simulator.parameters()),
-           "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": float(np.mean(work)), "gflop_per_second": float(np.mean(work)) * frames / per_rollout}
+           "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": float(np.mean(work)),
+           "gflop_per_second": float(np.mean(work)) * frames / per_rollout}
     if trained:
         out.update(_scores(name, scored, simulator.history))
     return out
