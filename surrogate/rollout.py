@@ -114,7 +114,8 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             t_graph += seconds_graph
         else:
             t0 = time.perf_counter()
-            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props)
+            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props,
+                                runtime is None or runtime.skip_kinematic_pairs)
             t_graph += time.perf_counter() - t0
             counts["nodes"] += graph.types.numel()
             counts["edges"] += graph.edge_index.shape[1]

@@ -9,6 +9,9 @@ one's measured effect):
   edge to a predicted one are left out of the graph. With no edge between two such particles, they
   cannot influence any prediction, so dropping them changes nothing. The generator then decodes,
   and the updater integrates, the predicted particles only;
+* ``skip_kinematic_pairs`` (exact for a model trained this way, as every model here is): no edge
+  joins two kinematic particles. Off, such edges are built: more work, and a graph the model never
+  saw in training (the benchmark measures both). Pruning and sleeping rely on it;
 * ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network;
   positions are integrated in float32);
 * ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is
@@ -29,6 +32,7 @@ PRECISIONS = ("float64", "float32", "bfloat16")
 @dataclass(frozen=True)
 class Runtime:
     split_edge_mlp: bool
+    skip_kinematic_pairs: bool
     prune_isolated: bool
     precision: str
     sleep_speed: float | None
@@ -36,6 +40,9 @@ class Runtime:
     def __post_init__(self):
         if self.precision not in PRECISIONS:
             raise ValueError(f"runtime.precision = {self.precision!r}: allowed are {', '.join(PRECISIONS)}")
+        if not self.skip_kinematic_pairs and (self.prune_isolated or self.sleep_speed is not None):
+            raise ValueError("runtime.prune_isolated and runtime.sleep_speed need runtime.skip_kinematic_pairs = "
+                             "true: they leave out particles that have no edge to a predicted one")
         if self.sleep_speed is not None and not self.sleep_speed > 0:
             raise ValueError(f"runtime.sleep_speed = {self.sleep_speed!r}: a positive speed (m per frame) or null")
 

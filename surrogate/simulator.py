@@ -36,9 +36,10 @@ class Graph:
 
 
 def build_graph(window: torch.Tensor, types: torch.Tensor, kinematic: torch.Tensor, radius: float,
-                props: torch.Tensor | None = None) -> Graph:
-    """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2)."""
-    edges = radius_graph(window[-1], radius, kinematic.cpu().numpy())
+                props: torch.Tensor | None = None, skip_kinematic_pairs: bool = True) -> Graph:
+    """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2); no edge
+    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch)."""
+    edges = radius_graph(window[-1], radius, kinematic.cpu().numpy() if skip_kinematic_pairs else None)
     return Graph(window, types, kinematic, edges, props)
 
 

@@ -11,7 +11,7 @@ from surrogate import rollout, runtime
 
 pytestmark = pytest.mark.engine
 
-PLAIN = runtime.Runtime(split_edge_mlp=False, prune_isolated=False, precision="float64", sleep_speed=None)
+PLAIN = runtime.Runtime(split_edge_mlp=False, skip_kinematic_pairs=True, prune_isolated=False, precision="float64", sleep_speed=None)
 
 
 def prepared(simulator, rt):
@@ -76,3 +76,14 @@ def test_sleeping_particles_hold_still_and_wake_near_motion(untrained):
     assert not np.allclose(result.position[k, near], crafted.position[k - 1, near].double().numpy())   # woken
     awake_only = rollout.rollout(prepared(simulator, PLAIN), crafted, runtime=PLAIN)
     np.testing.assert_allclose(result.position[k, fast], awake_only.position[k, fast], atol=0.05 * 1.0)
+
+
+def test_kinematic_pairs_add_edges_and_change_the_input_of_a_model_trained_without_them(untrained):
+    simulator, sim = untrained
+    paired = replace(PLAIN, skip_kinematic_pairs=False)
+    reference = rollout.rollout(prepared(simulator, PLAIN), sim, runtime=PLAIN)
+    result = rollout.rollout(prepared(simulator, paired), sim, runtime=paired)
+    assert result.timing["edges_per_step"] > reference.timing["edges_per_step"]
+    assert not np.allclose(result.position, reference.position)
+    with pytest.raises(ValueError, match="need runtime.skip_kinematic_pairs = true"):
+        replace(PLAIN, skip_kinematic_pairs=False, prune_isolated=True)
