@@ -11,7 +11,8 @@ from surrogate import rollout, runtime
 
 pytestmark = pytest.mark.engine
 
-PLAIN = runtime.Runtime(split_edge_mlp=False, skip_kinematic_pairs=True, prune_isolated=False, precision="float64", sleep_speed=None)
+PLAIN = runtime.Runtime(split_edge_mlp=False, skip_kinematic_pairs=True, prune_isolated=False, precision="float64",
+                        sleep_speed=None)
 
 
 def prepared(simulator, rt):

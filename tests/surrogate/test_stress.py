@@ -10,7 +10,8 @@ from surrogate import runtime, stress
 
 pytestmark = pytest.mark.engine
 
-RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32", sleep_speed=None)
+RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
+                     sleep_speed=None)
 
 
 def test_error_growth_is_the_geometric_mean_ratio_per_step():
