@@ -219,7 +219,7 @@ def cmd_benchmark_dem(args) -> None:
     rows = args.sims
     packings = [Path(args.packings) / row["packing"] for row in rows]
     result = benchmark.dem_contender(args.name, args.variant, args.scene, rows, packings, args.truth, args.history,
-                                     args.repeats)
+                                     args.repeats, args.body_displacement)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
 
@@ -230,7 +230,7 @@ def cmd_benchmark_surrogate(args) -> None:
         raise SystemExit("graphdem benchmark-surrogate: --runtime-json is required (the scene's runtime config)")
     result = benchmark.surrogate_contender(args.name, args.variant, args.checkpoint,
                                            runtime.Runtime.from_config(args.runtime_json), args.data,
-                                           args.repeats, args.threads)
+                                           args.repeats, args.threads, body_displacement=args.body_displacement)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
 
@@ -280,8 +280,8 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
     p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--runtime-json", type=_json,
-                   help="the scene's runtime switches (JSON: split_edge_mlp, prune_isolated, precision, sleep_speed; "
-                        "docs/performance.md); default: compute as in training")
+                   help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
+                        "precision, sleep_speed; docs/performance.md); default: compute as in training")
 
 
 def _runtime(args, simulator):
@@ -430,6 +430,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", type=Path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
     p.add_argument("--history", type=int, required=True, help="K: frames not scored (the surrogate's input)")
     p.add_argument("--repeats", type=int, required=True)
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_benchmark_dem)
 
@@ -442,6 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", required=True, help="the contender's name")
     p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"precision": "bfloat16"}')
     p.add_argument("--repeats", type=int, required=True)
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_benchmark_surrogate)
 

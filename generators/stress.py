@@ -48,8 +48,8 @@ def dem_time_steps(scene: str, row: dict, packing: Path, factors: list[float], s
         except stability.BlowUp as exc:
             record.update(stable=False, frame=exc.frame, cause=exc.cause)
         record["wall_seconds"] = time.perf_counter() - start
-        record["left_behind"] = int(out.exists() and not record["stable"]) + sum(
-            1 for p in scratch.glob(f".dt_x{factor:g}*"))          # a failed run must leave no folder, no temporary
+        # a failed run must leave no folder and no temporary (atomic_path's ".<name>.tmp-<pid>...")
+        record["left_behind"] = int(out.exists() and not record["stable"]) + sum(1 for _ in scratch.glob(".*tmp-*"))
         rows.append(record)
         shutil.rmtree(out, ignore_errors=True)
     return pd.DataFrame(rows)

@@ -7,10 +7,13 @@ the same way on the same test sims, scored with the same metrics against the dat
   neither the run-up before the first frame nor the settling (reported on its own row) counts.
 * A surrogate contender rolls the trained checkpoint out with other runtime switches; a contender
   with sizes (``latent``, ``hidden``, ``message_passing``) is an untrained model of that size,
-  timed only (its error is not reported). One untimed warm-up rollout per sim comes first.
+  timed only (its error is not reported) on the data's own windows (one-step predictions on the
+  true graphs, so that it sees the graphs a trained model would). One untimed warm-up rollout per
+  sim comes first.
 
 Every contender's time is the median of ``repeats`` runs per sim, averaged over the sims.
-Particle-frames per second count moving particles times predicted frames.
+Particle-frames per second count moving particles times predicted frames, summed over the sims,
+per second summed over the sims.
 """
 
 from __future__ import annotations
@@ -42,10 +45,12 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def _scores(name: str, sims: list[tuple[str, h5md.Trajectory, np.ndarray]], history: int) -> dict:
+def _scores(name: str, sims: list[tuple[str, h5md.Trajectory, np.ndarray]], history: int,
+            body_displacement: float | None) -> dict:
     """MSE and Acc per scene metric of one contender's predictions over the sims."""
     steps = [rows for sim_id, traj, prediction in sims
-             for rows in score(sim_id, traj, np.asarray(traj.position, np.float64), {name: prediction}, history)]
+             for rows in score(sim_id, traj, np.asarray(traj.position, np.float64), {name: prediction}, history,
+                               body_displacement)]
     table = summarise(pd.concat(steps, ignore_index=True))
     table = table[table["sim"] == "all"]
     out = {"mse": float(table.loc[table["metric"] == MSE, "mse"].iloc[0])}
@@ -69,11 +74,10 @@ def dem_row(row: dict, variant: dict) -> dict:
 
 
 def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packings: list[Path],
-                  truths: list[Path], history: int, repeats: int) -> dict:
+                  truths: list[Path], history: int, repeats: int, body_displacement: float | None = None) -> dict:
     """Time and score one DEM contender on the sims of ``rows`` (truth in ``truths``)."""
     engine = stress.engine(scene)
-    seconds, wall, steps_per_frame, peak, scored, frames, moving = [], [], [], [], [], 0, 0
-    blown = []
+    seconds, wall, steps_per_frame, per_step, peak, scored, work, blown = [], [], [], [], [], [], [], []
     for row, packing, truth_path in zip(rows, packings, truths, strict=True):
         truth = h5md.read(truth_path)
         runs = []
@@ -90,72 +94,83 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
                 continue
             h5 = convert.convert(scene, Path(scratch) / "raw0", Path(scratch) / "run.h5")
             prediction = np.asarray(h5md.read(h5).position, np.float64)
-        seconds.append(statistics.median(m["window_seconds"] for m in runs))
+        frames = truth.n_frames - history
+        # the recorded window covers frames 1..T-1: the predicted frames' share of its loop time
+        seconds.append(statistics.median(m["window_seconds"] for m in runs) * frames / (truth.n_frames - 1))
+        per_step.append(statistics.median(m["window_seconds"] / m["window_steps"] for m in runs))
         wall.append(statistics.median(m["wall_time"] for m in runs))
         steps_per_frame.append(runs[0]["steps_per_frame"])
         peak.append(max(m["max_rss_mb"] for m in runs))
         scored.append((row["id"], truth, prediction))
-        frames = truth.n_frames - history
-        moving = int((~np.asarray(truth.kinematic, bool)).sum())
+        work.append((frames, int((~np.asarray(truth.kinematic, bool)).sum())))
     out = {"contender": name, "kind": "dem", "settings": json.dumps(variant, sort_keys=True), "trained": True,
            "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored)}
     if not scored:
         return out
-    per_rollout = float(np.mean(seconds)) * frames / (frames + history - 1)   # the predicted frames' share
-    out.update(seconds_per_rollout=per_rollout, seconds_per_frame=per_rollout / frames,
-               particle_frames_per_second=moving * frames / per_rollout, peak_rss_mb=max(peak),
-               dem_steps_per_frame=float(np.mean(steps_per_frame)),
-               seconds_per_dem_step=float(np.mean(seconds)) / ((frames + history - 1)
-                                                               * float(np.mean(steps_per_frame))),
+    per_rollout = float(np.mean(seconds))
+    n_frames = sum(f for f, _ in work)
+    out.update(seconds_per_rollout=per_rollout, seconds_per_frame=sum(seconds) / n_frames,
+               particle_frames_per_second=sum(f * m for f, m in work) / sum(seconds), peak_rss_mb=max(peak),
+               dem_steps_per_frame=float(np.mean(steps_per_frame)), seconds_per_dem_step=float(np.mean(per_step)),
                wall_seconds_per_run=float(np.mean(wall)))
-    out.update(_scores(name, scored, history))
+    out.update(_scores(name, scored, history, body_displacement))
     return out
 
 
 def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: rt.Runtime, truths: list[Path],
-                        repeats: int, threads: int, seed: int = 0) -> dict:
+                        repeats: int, threads: int, seed: int = 0, body_displacement: float | None = None) -> dict:
     """Time and score one surrogate contender (the trained checkpoint, or an untrained model of
     other sizes when ``variant`` has size keys) on the sims ``truths``."""
     torch.set_num_threads(max(1, int(threads)))
     simulator, meta = checkpoint.simulator_from(checkpoint_path)
     sizes = {k: variant[k] for k in SIZE_KEYS if k in variant}
     switches = {k: v for k, v in variant.items() if k not in SIZE_KEYS}
-    runtime = rt.Runtime(**{**base.as_dict(), **switches})
+    runtime = rt.Runtime.from_config({**base.as_dict(), **switches})
     trained = not sizes
     if sizes:
         torch.manual_seed(seed)
         simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).eval()
     simulator = rt.apply(copy.deepcopy(simulator), runtime)
     props = list(meta["model"].get("properties") or [])
-    seconds, scored, frames, moving, blown, work, graph_share = [], [], 0, 0, [], [], []
+    seconds, scored, blown, work, graph_share, edges = [], [], [], [], [], []
     for path in truths:
         traj = h5md.read(path)
         sim = load_sim(path, meta["stats"], props, traj)
-        rollout(simulator, sim, runtime=runtime)                                   # warm-up, untimed
-        runs = [rollout(simulator, sim, runtime=runtime) for _ in range(repeats)]
+        rollout(simulator, sim, runtime=runtime, forced=not trained)                # warm-up, untimed
+        runs = [rollout(simulator, sim, runtime=runtime, forced=not trained) for _ in range(repeats)]
         if runs[0].first_nonfinite is not None:
             blown.append(f"{sim.id} non-finite from frame {runs[0].first_nonfinite}")
         seconds.append(statistics.median(r.seconds for r in runs))
-        scored.append((sim.id, traj, runs[0].position))
+        graph_share.append(statistics.median(r.seconds_graph / r.seconds for r in runs))
+        timing = runs[0].timing
+        edges.append(timing["edges_per_step"])
         frames = sim.n_frames - simulator.history
-        moving = int((~sim.kinematic).sum())
-    per_rollout = float(np.mean(seconds))
+        work.append((frames, int((~sim.kinematic).sum()),
+                     gflop_per_step({**meta["model"], **sizes}, sim.position.shape[-1], len(props),
+                                    timing["nodes_per_step"], timing["edges_per_step"], runtime.split_edge_mlp,
+                                    timing["decoded_per_step"])))
+        scored.append((sim.id, traj, runs[0].position))
+    n_frames = sum(f for f, _, _ in work)
+    gflop = sum(f * g for f, _, g in work)
     out = {"contender": name, "kind": "surrogate", "settings": json.dumps(variant, sort_keys=True),
            "trained": trained, "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored),
-           "seconds_per_rollout": per_rollout, "seconds_per_frame": per_rollout / frames,
-           "particle_frames_per_second": moving * frames / per_rollout, "peak_rss_mb": _peak_rss_mb(),
-           "threads": int(threads), "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
-           "parameters": sum(p.numel() for p in simulator.parameters()),
-           "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": float(np.mean(work)),
-           "gflop_per_second": float(np.mean(work)) * frames / per_rollout}
+           "seconds_per_rollout": float(np.mean(seconds)), "seconds_per_frame": sum(seconds) / n_frames,
+           "particle_frames_per_second": sum(f * m for f, m, _ in work) / sum(seconds),
+           "peak_rss_mb": _peak_rss_mb(), "threads": int(threads),
+           "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
+           "parameters": sum(p.numel() for p in simulator.parameters()), "edges_per_step": float(np.mean(edges)),
+           "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": gflop / n_frames,
+           "gflop_per_second": gflop / sum(seconds)}
     if trained:
-        out.update(_scores(name, scored, simulator.history))
+        out.update(_scores(name, scored, simulator.history, body_displacement))
     return out
 
 
-def gflop_per_step(model: dict, dim: int, n_props: int, nodes: float, edges: float, split: bool) -> float:
+def gflop_per_step(model: dict, dim: int, n_props: int, nodes: float, edges: float, split: bool,
+                   decoded: float | None = None) -> float:
     """Floating-point operations (2 per multiply-add) of one Graph-DEM step on a graph of ``nodes``
-    and ``edges``: the matrix products of every MLP (biases, norms and gathers left out)."""
+    and ``edges`` whose generator decodes ``decoded`` nodes (default all): the matrix products of
+    every MLP (biases, norms and gathers left out)."""
     lat, hid, layers, k = int(model["latent"]), int(model["hidden"]), int(model["mlp_layers"]), int(model["history"])
 
     def mlp(n_in: int, n_out: int) -> int:
@@ -166,7 +181,7 @@ def gflop_per_step(model: dict, dim: int, n_props: int, nodes: float, edges: flo
     per_updater = (edges * (first_edge + (layers - 2) * hid * hid + hid * lat) + (2 * nodes * lat * hid if split else 0)
                    + nodes * mlp(2 * lat, lat))
     macs = nodes * mlp(node_in, lat) + edges * mlp(dim + 1, lat) + int(model["message_passing"]) * per_updater \
-        + nodes * mlp(lat, dim)
+        + (nodes if decoded is None else decoded) * mlp(lat, dim)
     return 2.0 * macs / 1e9
 
 
@@ -191,6 +206,9 @@ def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds
     if ref.empty or pd.isna(ref["seconds_per_rollout"].iloc[0]):
         raise ValueError(f"the DEM reference contender {reference!r} is missing or blew up")
     ref = ref.iloc[0]
+    if main not in set(table.loc[table["kind"] == "surrogate", "contender"]):
+        raise ValueError(f"benchmark.main = {main!r} is not a surrogate contender; configured: "
+                         f"{sorted(table.loc[table['kind'] == 'surrogate', 'contender'])}")
     table["on_pareto_front"] = pareto_front(table)
     table["speedup_vs_reference"] = ref["seconds_per_rollout"] / table["seconds_per_rollout"]
     surrogate = table["kind"] == "surrogate"
@@ -199,9 +217,11 @@ def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds
     table["speedup_vs_matched_dem"] = np.nan
     per_step = ref["seconds_per_dem_step"]
     table.loc[surrogate, "break_even_substeps"] = table.loc[surrogate, "seconds_per_frame"] / per_step
-    dem = table[(table["kind"] == "dem") & table["mse"].notna()]
+    dem = table[(table["kind"] == "dem") & table["mse"].notna() & table["stable"].astype(bool)]
     for i in table.index[surrogate & table["mse"].notna()]:
         matched = dem[dem["mse"] <= table.at[i, "mse"]]                 # DEM at least as accurate
+        if matched.empty:
+            continue
         fastest = matched.loc[matched["seconds_per_rollout"].idxmin()]
         table.at[i, "matched_dem"] = fastest["contender"]
         table.at[i, "speedup_vs_matched_dem"] = fastest["seconds_per_rollout"] / table.at[i, "seconds_per_rollout"]

@@ -72,9 +72,10 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
     graph = Graph(window[:, index], sim.types[index], static[index], sub_edges,
                   None if sim.props is None else sim.props[index].to(window.dtype))
     seconds_graph = time.perf_counter() - t0
+    moving = (~static[index]).nonzero().squeeze(1)       # only these are decoded and integrated
     counts["nodes"] += len(index)
     counts["edges"] += sub_edges.shape[1]
-    moving = (~static[index]).nonzero().squeeze(1)       # only these are decoded and integrated
+    counts["decoded"] += len(moving)
     with runtime.autocast():
         acceleration = simulator(graph, decode=moving).to(window.dtype)
     predicted = simulator.integrate(graph.window[:, moving], acceleration)
@@ -85,28 +86,32 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
 
 @torch.inference_mode()
 def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, runtime: Runtime | None = None,
-            start: torch.Tensor | None = None) -> Rollout:
+            start: torch.Tensor | None = None, forced: bool = False) -> Rollout:
     """Predict frames ``K .. n_frames-1`` (default: as many frames as the sim has).
 
     ``runtime`` selects the switches of :mod:`surrogate.runtime` (the simulator must have been
     prepared with :func:`surrogate.runtime.apply`); None computes as in training. ``start``
-    replaces the first K frames (e.g. a perturbed history for a stress test).
+    replaces the first K frames (e.g. a perturbed history for a stress test). ``forced`` feeds every
+    step the data's window instead of the predicted one (one-step predictions on the true graphs:
+    how an untrained model of some size is timed on representative graphs).
     """
     k = simulator.history
     total = sim.n_frames if n_frames is None else int(n_frames)
     if sim.n_frames < k + 1 or total < k + 1:
         raise ValueError(f"{sim.path}: a rollout needs more than K = {k} frames, the sim has {sim.n_frames}")
+    if forced and total > sim.n_frames:
+        raise ValueError(f"{sim.path}: a forced rollout needs the data's frames, {sim.n_frames} < {total}")
     dtype = runtime.network_dtype if runtime is not None else torch.float32
     reduced = runtime is not None and (runtime.prune_isolated or runtime.sleep_speed is not None)
     positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype)
     positions[:k] = sim.position[:k] if start is None else start
     props = None if sim.props is None else sim.props.to(dtype)
-    counts = {"asleep": 0, "nodes": 0, "edges": 0}
+    counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0}
     first_bad = None
     t_graph = 0.0
     start_clock = time.perf_counter()
     for t in range(k, total):
-        window = positions[t - k:t]
+        window = sim.position[t - k:t].to(dtype) if forced else positions[t - k:t]
         # beyond the recorded window, kinematic particles stay where the data left them
         kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
         if reduced:
@@ -119,6 +124,7 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             t_graph += time.perf_counter() - t0
             counts["nodes"] += graph.types.numel()
             counts["edges"] += graph.edge_index.shape[1]
+            counts["decoded"] += graph.types.numel()
             if runtime is None:
                 nxt = simulator.step(graph, kinematic_next)
             else:
@@ -131,9 +137,8 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             break
         positions[t] = nxt
     seconds = time.perf_counter() - start_clock
-    steps = max((first_bad if first_bad is not None else total) - k, 1)
-    timing = {"nodes_per_step": counts["nodes"] / steps, "edges_per_step": counts["edges"] / steps,
-              "asleep_per_step": counts["asleep"] / steps}
+    steps = max((first_bad + 1 if first_bad is not None else total) - k, 1)     # steps computed
+    timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
     return Rollout(positions.numpy(), k, first_bad, seconds, t_graph, timing)
 
 

@@ -61,7 +61,7 @@ def long_rollout(simulator: LearnedSimulator, runtime: rt.Runtime, sim: Sim, len
         frames.append(first)
     return {
         "test": "surrogate_long_rollout", "sim": sim.id, "setting": f"{length}x recorded window, history noise "
-        f"{noise_std:g} m", "factor": float(length), "stable": not causes,
+        f"{noise_std:g} m per frame", "factor": float(length), "stable": not causes,
         "frame": min(frames) if frames else np.nan, "cause": "; ".join(causes),
         "n_frames": int(position.shape[0]), "nonfinite_frame": result.first_nonfinite,
         "escaped_particles": int(outside.any(axis=0).sum()),

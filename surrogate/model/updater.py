@@ -31,7 +31,7 @@ class Updater(MessagePassing):
         self.edge_mlp = MLP(3 * latent, hidden, latent, layers)
         self.node_mlp = MLP(2 * latent, hidden, latent, layers)
 
-    def edge_update(self, v: torch.Tensor, e: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
+    def edge_messages(self, v: torch.Tensor, e: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
         r""":math:`e'_{ij} = \mathrm{MLP}(v_i, e_{ij}, v_j)` (eq. 8)."""
         sender, receiver = edge_index
         if not self.split_edge_mlp:
@@ -46,7 +46,7 @@ class Updater(MessagePassing):
         return h
 
     def forward(self, v: torch.Tensor, e: torch.Tensor, edge_index: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        e_new = self.edge_update(v, e, edge_index)
+        e_new = self.edge_messages(v, e, edge_index)
         aggregated = self.propagate(edge_index, message_value=e_new, size=(v.size(0), v.size(0)))
         v_new = self.node_mlp(torch.cat([v, aggregated], dim=-1))
         return v + v_new, e + e_new

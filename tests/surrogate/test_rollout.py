@@ -83,3 +83,15 @@ def test_rollout_mse_is_mean_squared_euclidean_over_moving_particles():
     pred[2:, 2] = [100.0, 0.0]             # kinematic: not counted
     mse = rollout.rollout_mse(pred, truth, np.array([True, True, False]), history=2)
     np.testing.assert_allclose(mse, [12.5, 12.5])
+
+
+def test_forced_rollout_predicts_every_frame_from_the_datas_window(untrained):
+    simulator, sim = untrained
+    with torch.no_grad():                          # zero acceleration: next = 2 x_t - x_{t-1}
+        simulator.acceleration_std.zero_()
+        simulator.acceleration_mean.zero_()
+    result = rollout.rollout(simulator, sim, forced=True)
+    data = sim.position.numpy()
+    np.testing.assert_allclose(result.position[4:], 2 * data[3:-1] - data[2:-2], atol=1e-4)
+    with pytest.raises(ValueError, match="a forced rollout needs the data's frames"):
+        rollout.rollout(simulator, sim, n_frames=sim.n_frames + 1, forced=True)

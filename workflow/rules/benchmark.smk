@@ -11,6 +11,7 @@ rule benchmark_dem:
         sims=benchmarked_rows_json,
         history=lambda wc: CFG[wc.scene]["model"]["history"],
         repeats=lambda wc: CFG[wc.scene]["benchmark"]["repeats"],
+        body=body_displacement_arg,
     threads: 64
     log:
         "results/{scene}/logs/benchmark/dem_{contender}.log",
@@ -19,7 +20,7 @@ rule benchmark_dem:
     shell:
         "graphdem benchmark-dem --scene {wildcards.scene} --name {wildcards.contender} --variant {params.variant:q} "
         "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth} "
-        "--history {params.history} --repeats {params.repeats} --out {output} > {log} 2>&1"
+        "--history {params.history} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
 
 
 rule benchmark_surrogate:
@@ -33,6 +34,7 @@ rule benchmark_surrogate:
         runtime=runtime_json,
         repeats=lambda wc: CFG[wc.scene]["benchmark"]["repeats"],
         threads=lambda wc: CFG[wc.scene]["benchmark"]["threads"],
+        body=body_displacement_arg,
     threads: 64
     log:
         "results/{scene}/logs/benchmark/surrogate_{contender}.log",
@@ -41,7 +43,7 @@ rule benchmark_surrogate:
     shell:
         "graphdem benchmark-surrogate --name {wildcards.contender} --variant {params.variant:q} "
         "--checkpoint {input.checkpoint} --data {input.truth} --runtime-json {params.runtime:q} "
-        "--threads {params.threads} --repeats {params.repeats} --out {output} > {log} 2>&1"
+        "--threads {params.threads} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
 
 
 rule benchmark:

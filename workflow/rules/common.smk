@@ -46,20 +46,28 @@ def sim_ids(scene: str) -> list[str]:
     return list(SWEEPS[scene]["id"])
 
 
-def sim_row(wildcards) -> dict:
-    table = SWEEPS[wildcards.scene]
-    rows = table[table["id"] == wildcards.sim]
+def _row(scene: str, sim: str) -> dict:
+    table = SWEEPS[scene]
+    rows = table[table["id"] == sim]
     if rows.empty:
-        raise ValueError(f"{wildcards.sim} is not in the {wildcards.scene} sweep "
+        raise ValueError(f"{sim} is not in the {scene} sweep "
                          f"({len(table)} sims: {table['id'].iloc[0]}..{table['id'].iloc[-1]})")
     return rows.iloc[0].to_dict()
 
 
-def sim_row_json(wildcards) -> str:
-    """The sim's physics: its sweep row without the split (a new split must not rerun a sim)."""
-    row = sim_row(wildcards)
+def _physics(scene: str, sim: str) -> dict:
+    """A sim's physics: its sweep row without the split (a new split must not rerun a sim)."""
+    row = _row(scene, sim)
     row.pop("split")
-    return _json(row)
+    return row
+
+
+def sim_row(wildcards) -> dict:
+    return _row(wildcards.scene, wildcards.sim)
+
+
+def sim_row_json(wildcards) -> str:
+    return _json(_physics(wildcards.scene, wildcards.sim))
 
 
 def packing_of_sim(wildcards) -> str:
@@ -192,17 +200,17 @@ def stressed_packing(wildcards) -> str:
 
 
 def stressed_row_json(wildcards) -> str:
-    table = SWEEPS[wildcards.scene]
-    row = table[table["id"] == stressed_ids(wildcards)[0]].iloc[0].to_dict()
-    row.pop("split")
-    return _json(row)
+    return _json(_physics(wildcards.scene, stressed_ids(wildcards)[0]))
 
 
-def stability_args(wildcards) -> dict:
+def dem_stress_factors(wildcards) -> str:
+    return " ".join(f"{f:g}" for f in CFG[wildcards.scene]["stability"]["dem_dt_factors"])
+
+
+def surrogate_stress_args(wildcards) -> dict:
     s = CFG[wildcards.scene]["stability"]
-    return {"factors": " ".join(f"{f:g}" for f in s["dem_dt_factors"]),
-            "lengths": " ".join(str(n) for n in s["rollout_lengths"]),
-            "noise": s["history_noise"], "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
+    return {"lengths": " ".join(str(n) for n in s["rollout_lengths"]), "noise": s["history_noise"],
+            "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
 
 
 def benchmarked_ids(wildcards) -> list[str]:
@@ -218,11 +226,7 @@ def benchmarked_sims(wildcards) -> list[str]:
 
 
 def benchmarked_rows_json(wildcards) -> str:
-    table = SWEEPS[wildcards.scene]
-    rows = [table[table["id"] == i].iloc[0].to_dict() for i in benchmarked_ids(wildcards)]
-    for row in rows:
-        row.pop("split")
-    return _json(rows)
+    return _json([_physics(wildcards.scene, i) for i in benchmarked_ids(wildcards)])
 
 
 def benchmarked_packings(wildcards) -> list[str]:

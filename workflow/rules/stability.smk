@@ -7,7 +7,7 @@ rule stability_dem:
         "results/{scene}/stability/dem.csv",
     params:
         sim=stressed_row_json,
-        args=stability_args,
+        factors=dem_stress_factors,
     threads: 1
     log:
         "results/{scene}/logs/stability_dem.log",
@@ -15,7 +15,7 @@ rule stability_dem:
         "results/{scene}/benchmarks/stability_dem.tsv"
     shell:
         "graphdem stability-dem --scene {wildcards.scene} --sim {params.sim:q} --packing {input.packing} "
-        "--factors {params.args[factors]} --out {output} > {log} 2>&1"
+        "--factors {params.factors} --out {output} > {log} 2>&1"
 
 
 rule stability_surrogate:
@@ -26,7 +26,7 @@ rule stability_surrogate:
         "results/{scene}/stability/surrogate.csv",
     params:
         runtime=runtime_json,
-        args=stability_args,
+        args=surrogate_stress_args,
     threads: 1
     log:
         "results/{scene}/logs/stability_surrogate.log",
