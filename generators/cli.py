@@ -127,7 +127,7 @@ def cmd_rollout(args) -> None:
 def cmd_evaluate(args) -> None:
     import pandas as pd
 
-    from surrogate import evaluate, plots, runtime
+    from surrogate import evaluate, plots
     _logging()
     if (args.data is None) == (args.splits is None):
         raise SystemExit("graphdem evaluate: give either --data (H5MD files or folders) or --splits (a split table)")
@@ -143,8 +143,7 @@ def cmd_evaluate(args) -> None:
     table, steps, sims = evaluate.evaluate(args.checkpoint, data, args.history, rollouts_dir=args.rollouts,
                                            body_displacement=args.body_displacement, threads=args.threads,
                                            progress=not args.no_progress, split=split, split_note=note,
-                                           runtime=None if args.runtime_json is None
-                                           else runtime.Runtime.from_config(args.runtime_json))
+                                           runtime=_runtime_config(args))
     evaluate.write(table, steps, args.out, args.per_step)
     print(evaluate.report(table))
     if args.plots:
@@ -191,15 +190,13 @@ def cmd_stability_surrogate(args) -> None:
     import torch
 
     from generators.atomic import atomic_path
-    from surrogate import checkpoint, evaluate, runtime, stress
+    from surrogate import checkpoint, evaluate, stress
     from surrogate.samples import load_sim
     _logging()
     torch.set_num_threads(max(1, args.threads))
     simulator, meta = checkpoint.simulator_from(args.checkpoint)
     sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or []) for p in evaluate.data_files(args.data)]
-    if args.runtime_json is None:
-        raise SystemExit("graphdem stability-surrogate: --runtime-json is required (the scene's runtime config)")
-    rt = runtime.Runtime.from_config(args.runtime_json)
+    rt = _runtime_config(args, required_by="stability-surrogate")
     table = stress.surrogate_report(simulator, rt, sims, args.lengths, args.noise, args.seed, args.max_overlap)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False)
@@ -225,11 +222,9 @@ def cmd_benchmark_dem(args) -> None:
 
 
 def cmd_benchmark_surrogate(args) -> None:
-    from surrogate import benchmark, runtime
-    if args.runtime_json is None:
-        raise SystemExit("graphdem benchmark-surrogate: --runtime-json is required (the scene's runtime config)")
+    from surrogate import benchmark
     result = benchmark.surrogate_contender(args.name, args.variant, args.checkpoint,
-                                           runtime.Runtime.from_config(args.runtime_json), args.data,
+                                           _runtime_config(args, required_by="benchmark-surrogate"), args.data,
                                            args.repeats, args.threads, body_displacement=args.body_displacement)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
@@ -284,13 +279,25 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
                         "precision, sleep_speed; docs/performance.md); default: compute as in training")
 
 
+def _runtime_config(args, required_by: str | None = None):
+    """The Runtime of --runtime-json; None without it, unless the command ``required_by`` needs it."""
+    from surrogate import runtime
+    if args.runtime_json is None:
+        if required_by:
+            raise SystemExit(f"graphdem {required_by}: --runtime-json is required (the scene's runtime config)")
+        return None
+    return runtime.Runtime.from_config(args.runtime_json)
+
+
 def _runtime(args, simulator):
     """The simulator prepared for the --runtime-json switches, and the Runtime (None without)."""
     from surrogate import runtime
-    if args.runtime_json is None:
-        return simulator, None
-    rt = runtime.Runtime.from_config(args.runtime_json)
-    return runtime.apply(simulator, rt), rt
+    rt = _runtime_config(args)
+    return (simulator, None) if rt is None else (runtime.apply(simulator, rt), rt)
+
+
+def _body_displacement(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -381,7 +388,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
     p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
     p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
-    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    _body_displacement(p)
     p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
     p.add_argument("--animate", help="sim id to animate (default: the first)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -430,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", type=Path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
     p.add_argument("--history", type=int, required=True, help="K: frames not scored (the surrogate's input)")
     p.add_argument("--repeats", type=int, required=True)
-    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    _body_displacement(p)
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_benchmark_dem)
 
@@ -443,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", required=True, help="the contender's name")
     p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"precision": "bfloat16"}')
     p.add_argument("--repeats", type=int, required=True)
-    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    _body_displacement(p)
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_benchmark_surrogate)
 
