@@ -14,7 +14,7 @@ from pathlib import Path
 
 from generators import config as gconfig
 
-SCENES = ("slide",)
+SCENES = gconfig.SCENES
 BENCHMARKS = gconfig.BENCHMARKS
 
 
@@ -48,14 +48,14 @@ def cmd_sweep(args) -> None:
 
 
 def cmd_prepare(args) -> None:
-    from generators.lammps import slide as lammps_slide
-    meta = lammps_slide.settle(args.params, Path(args.out))
+    from generators import scenes
+    meta = scenes.driver(args.scene).settle(args.params, Path(args.out))
     print(json.dumps({k: v for k, v in meta.items() if k != "params"}, indent=2))
 
 
 def cmd_simulate(args) -> None:
-    from generators.lammps import slide as lammps_slide
-    meta = lammps_slide.simulate(args.sim, Path(args.packing), Path(args.out))
+    from generators import scenes
+    meta = scenes.driver(args.scene).simulate(args.sim, Path(args.packing), Path(args.out))
     print(json.dumps({k: v for k, v in meta.items() if k not in ("params", "kinetic_energy")}, indent=2))
 
 
@@ -85,8 +85,15 @@ def cmd_dataset(args) -> None:
         first = splits[splits["split"] == "train"].iloc[0]
         traj = h5md.read(first["path"])
         names = {int(k): v for k, v in dict(traj.parameters.get("species_names") or {}).items()}
-        plots.first_last(args.plot, traj.position, traj.radius, traj.species, traj.time,
-                         traj.box_lower, traj.box_upper, f"{args.scene}: {first['id']}", names)
+        position, radius, lower, upper = traj.position, traj.radius, traj.box_lower, traj.box_upper
+        title, ylabel = f"{args.scene}: {first['id']}", "y (m)"
+        if traj.dim == 3:                       # a vertical section through the middle, seen from the side
+            mid = 0.5 * float(lower[1] + upper[1])
+            position, radius = plots.plane_section(position, radius, mid, axis=1)
+            lower, upper, ylabel = lower[[0, 2]], upper[[0, 2]], "z (m)"
+            title += f", section y = {mid:.4g} m"
+        plots.first_last(args.plot, position, radius, traj.species, traj.time, lower, upper, title, names,
+                         ylabel=ylabel)
 
 
 def _logging() -> None:
@@ -155,12 +162,19 @@ def cmd_evaluate(args) -> None:
                                   + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
                                   x="tau" if nominal_time else "time")
         pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
-        if pick is not None and pick.truth.shape[-1] == 2:
+        if pick is not None:
             t = pick.traj
             names = {int(k): v for k, v in dict(t.parameters.get("species_names") or {}).items()}
-            plots.animation(Path(args.plots) / "rollout.gif", pick.truth, pick.predictions[evaluate.MODEL], t.radius,
-                            t.species, t.time, t.box_lower, t.box_upper, args.history,
-                            f"{name} {pick.id}: DEM (left) and Graph-DEM (right)", names)
+            truth, pred, radius = pick.truth, pick.predictions[evaluate.MODEL], t.radius
+            title = f"{name} {pick.id}: DEM (left) and Graph-DEM (right)"
+            if truth.shape[-1] == 3:           # a 3D scene: the section by its split plane (shear box)
+                height = float(t.parameters.get("split_height", 0.5 * (t.box_lower[2] + t.box_upper[2])))
+                (truth, radius_truth), (pred, radius_pred) = (plots.plane_section(p, radius, height)
+                                                              for p in (truth, pred))
+                radius = (radius_truth, radius_pred)
+                title += f"\nsection z = {1000 * height:.1f} mm (the box's split plane), seen from above"
+            plots.animation(Path(args.plots) / "rollout.gif", truth, pred, radius, t.species, t.time,
+                            t.box_lower[:2], t.box_upper[:2], args.history, title, names)
 
 
 def cmd_combine(args) -> None:

@@ -101,6 +101,7 @@ def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
     return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
 
 
+SCENES = ("slide", "meteorite", "shear")
 BENCHMARKS = ("slide_samer", "slide_small")
 
 
@@ -122,7 +123,7 @@ def validate(config: dict) -> dict:
 
 
 def _check_semantics(config: dict) -> None:
-    for scene in ("slide",):
+    for scene in SCENES:
         cfg = config.get(scene)
         if not cfg:
             continue
@@ -132,8 +133,13 @@ def _check_semantics(config: dict) -> None:
         if abs(sum(cfg["split"]) - 1.0) > 1e-6:
             raise ConfigError(f"config key '{scene}.split' = {cfg['split']} must sum to 1")
         for key, rng in cfg["sweep"].items():
-            if rng is not None and rng[0] > rng[1]:
+            if isinstance(rng, list) and len(rng) == 2 and key != "displacements" and rng[0] > rng[1]:
                 raise ConfigError(f"config key '{scene}.sweep.{key}' = {rng} must be [min, max] with min <= max")
+    shear = config.get("shear")
+    if shear and shear["wall_radius"] * (shear["wall_spacing"] / 2**0.5 - 1.0) >= shear["radius"][0]:
+        raise ConfigError(f"config keys 'shear.wall_radius' = {shear['wall_radius']} and 'shear.wall_spacing' = "
+                          f"{shear['wall_spacing']} leave holes in the box walls wider than the smallest soil sphere "
+                          f"({shear['radius'][0]} m): lower the spacing or raise the wall radius")
 
 
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")

@@ -24,6 +24,20 @@ def draw_discs(ax, xy: np.ndarray, radius: np.ndarray, species: np.ndarray, alph
                                         edgecolors="none", alpha=alpha))
 
 
+def plane_section(position: np.ndarray, radius: np.ndarray, height: float, axis: int = 2
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The cut of 3D spheres by the plane x_axis = ``height``: centres in the two other axes [T, N, 2]
+    (NaN for a sphere the plane misses) and the radius of each cut circle [T, N]."""
+    position = np.asarray(position, np.float64)
+    dz = position[..., axis] - height
+    with np.errstate(invalid="ignore"):
+        r2 = np.asarray(radius, np.float64)[None, :] ** 2 - dz**2
+        cut = r2 > 0
+    others = [a for a in range(3) if a != axis]
+    xy = np.where(cut[..., None], position[..., others], np.nan)
+    return xy, np.sqrt(np.where(cut, r2, 0.0))
+
+
 def frame_axes(ax, lower: np.ndarray, upper: np.ndarray) -> None:
     """Axes of a 2D particle picture: the domain, to scale, in metres."""
     ax.set_xlim(lower[0], upper[0])
@@ -34,14 +48,17 @@ def frame_axes(ax, lower: np.ndarray, upper: np.ndarray) -> None:
 
 def first_last(path: str | Path, position: np.ndarray, radius: np.ndarray, species: np.ndarray,
                time: np.ndarray, lower: np.ndarray, upper: np.ndarray, title: str,
-               labels: dict[int, str] | None = None) -> Path:
-    """Side-by-side picture of a 2D trajectory's first and last frame."""
+               labels: dict[int, str] | None = None, ylabel: str = "y (m)") -> Path:
+    """Side-by-side picture of a 2D trajectory's first and last frame (``radius`` [N], or [T, N] for a
+    plane section of a 3D one, whose missed spheres are NaN in ``position``)."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True, constrained_layout=True)
     for ax, frame in zip(axes, (0, len(position) - 1), strict=True):
-        draw_discs(ax, position[frame], radius, species)
+        shown = np.isfinite(position[frame]).all(axis=1)
+        rad = np.asarray(radius)[frame] if np.ndim(radius) == 2 else np.asarray(radius)
+        draw_discs(ax, position[frame][shown], rad[shown], np.asarray(species)[shown])
         frame_axes(ax, lower, upper)
-        ax.set_title(f"frame {frame}, t = {time[frame]:.2f} s")
-    axes[0].set_ylabel("y (m)")
+        ax.set_title(f"frame {frame}, t = {time[frame]:.4g} s")
+    axes[0].set_ylabel(ylabel)
     if labels:
         handles = [plt.Line2D([], [], marker="o", ls="", color=SPECIES_COLOURS.get(k, "#888"), label=v)
                    for k, v in labels.items()]

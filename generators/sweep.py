@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from generators.scenes import slide
+from generators.scenes import meteorite, shear, slide
 
 SPLITS = ("train", "valid", "test")
 SCENE_PARAMS = {
@@ -17,6 +17,11 @@ SCENE_PARAMS = {
               "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
               "weak_friction", "weak_rolling_friction", "dt_safety", "dt", "frames", "record_start",
               "frame_interval", "max_overlap", "max_energy_gain", "engine"),
+    "meteorite": ("domain", "gravity", "radius", "bed_depth", "meteorite_radius", "density", "young", "kt_over_kn",
+                  "restitution", "friction", "rolling_friction", "dt_safety", "dt", "frames", "contact_frame",
+                  "frame_interval", "max_overlap", "max_energy_gain", "engine"),
+    "shear": ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "poisson", "restitution",
+              "friction", "dt_safety", "dt", "shear_speed", "frames", "max_overlap", "failure_band", "engine"),
 }
 
 
@@ -59,8 +64,46 @@ def slide_sweep(cfg: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _grid(lo: float, hi: float, n: int) -> list[float]:
+    return [round(float(v), 6) for v in (np.linspace(lo, hi, n) if n > 1 else [0.5 * (lo + hi)])]
+
+
+def _grid_sweep(scene: str, cfg: dict, axes: dict[str, list[float]], packing: str) -> pd.DataFrame:
+    """One row per combination of the ``axes`` values (the first axis varies slowest)."""
+    names = list(axes)
+    combos = np.array(np.meshgrid(*axes.values(), indexing="ij")).reshape(len(names), -1).T
+    labels = split_labels(len(combos), cfg["split"], cfg["seed"])
+    rows = []
+    for i, values in enumerate(combos):
+        rng = np.random.default_rng([cfg["seed"], i])
+        row = {"id": f"{scene}_{i:04d}", "split": labels[i], "seed": int(rng.integers(2**31 - 1)),
+               **{n: float(v) for n, v in zip(names, values, strict=True)}, "packing": packing}
+        row.update({name: cfg[name] for name in SCENE_PARAMS[scene]})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def meteorite_sweep(cfg: dict) -> pd.DataFrame:
+    """The impact angle x speed grid (article 5.1: 31 x 31 at paper scale); every sim shares one bed."""
+    sw = cfg["sweep"]
+    axes = {"angle": _grid(*sw["angle"], sw["n_angles"]), "speed": _grid(*sw["speed"], sw["n_speeds"])}
+    return _grid_sweep("meteorite", cfg, axes, meteorite.packing_key(meteorite.packings(cfg)[0]))
+
+
+def shear_sweep(cfg: dict) -> pd.DataFrame:
+    """The soil modulus x shear displacement grid; every sim shares one packing. ``domain_displacement``
+    (the largest displacement) fixes the same data bounds for every sim."""
+    axes = {"young": shear.young_values(cfg), "displacement": [float(d) for d in cfg["sweep"]["displacements"]]}
+    table = _grid_sweep("shear", cfg, axes, shear.packing_key(shear.packings(cfg)[0]))
+    table["domain_displacement"] = max(axes["displacement"])
+    return table
+
+
+BUILDERS = {"slide": slide_sweep, "meteorite": meteorite_sweep, "shear": shear_sweep}
+
+
 def build(scene: str, cfg: dict) -> pd.DataFrame:
     """The sweep table of ``scene`` from its validated config section."""
-    if scene == "slide":
-        return slide_sweep(cfg)
-    raise ValueError(f"unknown scene {scene!r}; known: slide")
+    if scene not in BUILDERS:
+        raise ValueError(f"unknown scene {scene!r}; known: {', '.join(BUILDERS)}")
+    return BUILDERS[scene](cfg)

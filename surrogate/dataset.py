@@ -68,6 +68,7 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
     species = set()
     kinematic_species = set()
     props: dict[str, _Moments] = {}
+    logged: set[str] = set()
     for path in tqdm(paths, desc="dataset statistics", unit="sim"):
         traj = h5md.read(path)
         if vel is None:
@@ -82,8 +83,11 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         v = np.diff(p, axis=0)
         vel.add(v)
         acc.add(np.diff(v, axis=0))
+        logs = set(traj.parameters.get("log_scaled_properties") or [])
+        logged |= logs
         for name in ("radius", *traj.property_names):
-            props.setdefault(name, _Moments(1)).add(property_values(traj, name)[moving])
+            values = property_values(traj, name)[moving]
+            props.setdefault(name, _Moments(1)).add(np.log(values) if name in logs else values)
         species.update(np.unique(traj.species).tolist())
         kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
     floor = 1e-12
@@ -95,9 +99,10 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         "connectivity_radius": float(connectivity_radius),
         "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
         "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
-        # node properties f_i (radius and the H5MD properties) over the moving train particles
-        "property_stats": {name: {"mean": float(m.mean[0]), "std": float(max(m.std[0], floor)), "log": False}
-                           for name, m in props.items()},
+        # node properties f_i (radius and the H5MD properties) over the moving train particles; those the
+        # data marks as log-scaled (a modulus spans decades) are normalised as ln(value)
+        "property_stats": {name: {"mean": float(m.mean[0]), "std": float(max(m.std[0], floor)),
+                                  "log": name in logged} for name, m in props.items()},
     }
 
 

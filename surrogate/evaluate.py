@@ -115,7 +115,7 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
     (method name -> [T, N, D]) over the frames after the first ``history``."""
     scene = str(traj.parameters.get("scene", "unknown"))
     moving = ~np.asarray(traj.kinematic, bool)
-    metrics = SCENES[scene](traj.kinematic, traj.radius, body_displacement) if scene in SCENES else None
+    metrics = SCENES[scene].for_trajectory(traj, body_displacement) if scene in SCENES else None
     truth_values = metrics(truth) if metrics else {}
     rows = []
     for method, prediction in predictions.items():

@@ -13,13 +13,16 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from generators.atomic import atomic_path  # noqa: E402
-from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes  # noqa: E402
+from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plane_section  # noqa: E402,F401
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
          "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity")}
 UNITS = {"Slide Num": "particles", "Max Ht": "m", "Mean Ht": "m", "Tongue Dis": "m", "Dis": "m", "Dis mean": "m",
-         "rollout MSE": "m$^2$"}
+         "rollout MSE": "m$^2$", "Mean x": "m", "Imp Dep": "m", "Cra Dep": "m", "Imp R(L)": "m", "Imp R(R)": "m",
+         "Sp Num(L)": "particles", "Sp Num(R)": "particles", "Max Ht(L)": "m", "Max Ht(R)": "m", "Mean Ht(L)": "m",
+         "Mean Ht(R)": "m", **{f"{s} {k}": "m" for s in ("Above", "Below", "Failure Surface", "All")
+                               for k in ("sum", "mean")}}
 
 
 def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str = "time") -> Path:
@@ -63,20 +66,25 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
 def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.ndarray, species: np.ndarray,
               time: np.ndarray, lower: np.ndarray, upper: np.ndarray, history: int, title: str,
               labels: dict[int, str] | None = None, fps: int = 4) -> Path:
-    """GIF (Pillow, no external binary) of a 2D sim: DEM truth and Graph-DEM side by side."""
+    """GIF (Pillow, no external binary) of a 2D sim, or of a plane section of a 3D one
+    (:func:`plane_section`; ``radius`` then a pair of [T, N] arrays, truth's and prediction's): DEM truth
+    and Graph-DEM side by side."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, constrained_layout=True)
     labels = labels or {}
     handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=labels.get(k, f"species {k}"))
                for k, c in SPECIES_COLOURS.items() if k in set(np.asarray(species).tolist())]
 
     def draw(frame: int):
-        for ax, pos, name in ((axes[0], truth, "DEM (truth)"), (axes[1], prediction, "Graph-DEM")):
+        radii = radius if isinstance(radius, tuple) else (radius, radius)
+        for ax, pos, name, rad in ((axes[0], truth, "DEM (truth)", radii[0]),
+                                   (axes[1], prediction, "Graph-DEM", radii[1])):
             ax.clear()
             finite = np.isfinite(pos[frame]).all(axis=1)
-            draw_discs(ax, pos[frame][finite], np.asarray(radius)[finite], np.asarray(species)[finite])
+            rad = np.asarray(rad)[frame] if np.ndim(rad) == 2 else np.asarray(rad)
+            draw_discs(ax, pos[frame][finite], rad[finite], np.asarray(species)[finite])
             frame_axes(ax, lower, upper)
             stage = "history (data)" if frame < history else f"predicted step {frame - history + 1}"
-            ax.set_title(f"{name}: t = {time[frame]:.2f} s, {stage}", fontsize=9)
+            ax.set_title(f"{name}: t = {time[frame]:.4g} s, {stage}", fontsize=9)
         axes[0].set_ylabel("y (m)")
         axes[1].legend(handles=handles, loc="upper right", fontsize=7)
         fig.suptitle(title)

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from generators import contact, stability
+from generators import stability
 from generators.atomic import atomic_path
-from generators.lammps import io, runner
+from generators.lammps import io, pair, runner
 from generators.scenes import slide
 
 PACKING_FILE = "packing.csv"
@@ -21,18 +21,7 @@ RUN_FILE = "run.json"
 def _contact_variables(p: dict) -> dict[str, float]:
     """LAMMPS pair parameters of the scene's linear spring-dashpot contact."""
     dt, limit, kn = slide.dem_step(p, where=p.get("id", "slide"))
-    kt = p["kt_over_kn"] * kn
-    r_mean = 0.5 * (p["radius"][0] + p["radius"][1])
-    m_mean = contact.disc_mass(p["density"], r_mean)
-    zeta = contact.damping_ratio(p["restitution"])
-    return {
-        "kn": kn, "kt": kt, "kr": kt,
-        "e_tsuji": contact.lammps_tsuji_input(p["restitution"]),
-        "gammar": 2.0 * zeta * math.sqrt(kt * m_mean / 2.0) * r_mean**2,
-        "mu": p["friction"], "mur": p["rolling_friction"],
-        "skin": 0.5 * r_mean, "g": p["gravity"], "dt": dt, "density": p["density"],
-        "_dt_limit": limit, "_m_mean": m_mean,
-    }
+    return pair.granular_variables(p, dt, limit, kn)
 
 
 def _lammps_types(species: np.ndarray) -> np.ndarray:

@@ -26,6 +26,10 @@ class SlideMetrics:
     #: metrics comparing a prediction with the truth
     pair_names = ("Dis", "Dis mean")
 
+    @classmethod
+    def for_trajectory(cls, traj, body_displacement: float | None = None) -> SlideMetrics:
+        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.radius, float), body_displacement)
+
     @property
     def threshold(self) -> float:
         if self.body_displacement is not None:

@@ -4,8 +4,8 @@ import os
 import sys
 
 from generators import config as gconfig
+from generators import scenes as gscenes
 from generators import sweep as gsweep
-from generators.scenes import slide as slide_scene
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
@@ -15,7 +15,7 @@ try:
 except gconfig.ConfigError as exc:
     sys.exit(f"graphdem: {exc}")
 
-SCENES = ["slide"]
+SCENES = list(gconfig.SCENES)
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -75,10 +75,9 @@ def packing_of_sim(wildcards) -> str:
 
 
 def packing_params_json(wildcards) -> str:
-    cfg = CFG[wildcards.scene]
-    for index in range(cfg["n_packings"]):
-        params = slide_scene.packing_params(cfg, index)
-        if slide_scene.packing_key(params) == wildcards.key:
+    definition = gscenes.definition(wildcards.scene)
+    for params in gscenes.packings(wildcards.scene, CFG[wildcards.scene]):
+        if definition.packing_key(params) == wildcards.key:
             return _json(params)
     raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
 

@@ -1,0 +1,74 @@
+"""Run Debian's ``yade -n -x`` (no GUI, exit when done, one thread) on graphdem's YADE script."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+EXECUTABLE_ENV = "GRAPHDEM_YADE"
+SCRIPT = "graphdem_yade.py"
+
+
+class YadeError(RuntimeError):
+    """YADE exited with an error; the message holds the end of its log."""
+
+
+@dataclass(frozen=True)
+class Run:
+    command: str
+    version: str
+    wall_time: float
+    max_rss_mb: float
+    report: dict            # the script's own report: servers closed, listening sockets left, iterations
+
+
+def executable() -> str:
+    exe = os.environ.get(EXECUTABLE_ENV, "yade")
+    path = shutil.which(exe)
+    if path is None:
+        raise FileNotFoundError(f"YADE executable {exe!r} not found: install Debian's `yade` package (make install) "
+                                f"or set {EXECUTABLE_ENV} to its path")
+    return path
+
+
+def version() -> str:
+    out = subprocess.run([executable(), "--version"], capture_output=True, text=True, timeout=120).stdout
+    match = re.search(r"Yade version:\s*(\S+)", out)
+    return match.group(1) if match else "unknown"
+
+
+def run(job: dict, workdir: Path, name: str) -> tuple[dict, Run]:
+    """Write ``job`` to workdir/<name>.json, run the script on it, return its arrays and the run."""
+    workdir = Path(workdir)
+    script = workdir / SCRIPT
+    script.write_text(resources.files("generators.yade").joinpath("scripts", SCRIPT).read_text())
+    out = workdir / f"{name}.npz"
+    (workdir / f"{name}.json").write_text(json.dumps({**job, "out": str(out)}))
+    cmd = [executable(), "-n", "-x", "-j", "1", SCRIPT, f"{name}.json"]
+    # Debian's python runs yade: the pipeline's virtual environment must not leak into it
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
+    env.update(OMP_NUM_THREADS="1", DISPLAY="")
+    log = workdir / f"{name}.log"
+    with open(log, "w") as fh:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=workdir, env=env, stdout=fh, stderr=subprocess.STDOUT, text=True)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - start
+    code = os.waitstatus_to_exitcode(status)
+    if code != 0 or not out.is_file():
+        tail = log.read_text()[-1500:]
+        raise YadeError(f"YADE {name} run failed with exit status {code} in {workdir}: ...{tail}")
+    with np.load(out) as data:
+        arrays = {k: data[k] for k in data.files}
+    report = json.loads(Path(str(out) + ".json").read_text())
+    return arrays, Run(shlex.join(cmd), version(), wall, usage.ru_maxrss / 1024, report)
