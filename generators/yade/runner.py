@@ -49,7 +49,7 @@ def version() -> str:
 
 def run(job: dict, workdir: Path, name: str) -> tuple[dict, Run]:
     """Write ``job`` to workdir/<name>.json, run the script on it, return its arrays and the run."""
-    workdir = Path(workdir)
+    workdir = Path(workdir).resolve()        # yade runs inside workdir: every path it is given is absolute
     script = workdir / SCRIPT
     script.write_text(resources.files("generators.yade").joinpath("scripts", SCRIPT).read_text())
     out = workdir / f"{name}.npz"
