@@ -111,8 +111,9 @@ def surface_height(bed: Particles, x: float, half_width: float) -> float:
 def place_meteorite(row: dict, bed: Particles) -> tuple[Particles, np.ndarray]:
     """The bed plus the meteorite of sweep row ``row``, and the meteorite's initial velocity [2].
 
-    The cluster's lowest point reaches the bed surface above x = domain/2 after ``contact_frame``
-    frame intervals of straight flight (gravity bends the path by g t^2 / 2, a few centimetres).
+    The cluster's lowest point reaches the height of the bed's top above x = domain/2 after
+    ``contact_frame`` frame intervals of straight flight (gravity bends the path by g t^2 / 2, a few
+    centimetres).
     """
     offsets, r = meteorite_cluster(row)
     theta = math.radians(row["angle"])
@@ -121,7 +122,8 @@ def place_meteorite(row: dict, bed: Particles) -> tuple[Particles, np.ndarray]:
     width, height = row["domain"]
     x_hit = 0.5 * width
     y_top = surface_height(bed, x_hit, 2.0 * row["radius"][1])
-    centre_at_contact = np.array([x_hit, y_top + row["meteorite_radius"]])
+    lowest = float(np.max(r - offsets[:, 1]))          # the cluster's lowest point below its centre
+    centre_at_contact = np.array([x_hit, y_top + lowest])
     flight = row["contact_frame"] * row["frame_interval"] * row["speed"]
     centre = centre_at_contact - direction * flight
     xy = centre + offsets

@@ -25,8 +25,10 @@ def _material(p: dict, dt: float) -> dict:
 
 
 def _listening(run: runner.Run, where: str) -> None:
-    if run.report.get("listening_sockets"):
-        raise runner.YadeError(f"{where}: YADE still held listening sockets {run.report['listening_sockets']}")
+    """Refuse a run whose YADE process kept a listening socket (its TCP prompt or XML-RPC server)."""
+    left = run.report.get("listening_at_start", []) + run.report.get("listening_sockets", [])
+    if left:
+        raise runner.YadeError(f"{where}: YADE held listening sockets {left} during the run")
 
 
 def settle(params: dict, out_dir: Path) -> dict:

@@ -152,13 +152,15 @@ def collision(job, out):
 
 def main():
     closed = close_servers()
+    listening_at_start = listening_sockets()
     with open(sys.argv[1]) as fh:
         job = json.load(fh)
     out = job["out"]
     {"settle": settle, "shear": shear, "collision": collision}[job["mode"]](job, out + ".tmp.npz")
     os.replace(out + ".tmp.npz", out)
     with open(out + ".json", "w") as fh:
-        json.dump({"servers_closed": closed, "listening_sockets": listening_sockets(),
+        json.dump({"servers_closed": closed, "listening_at_start": listening_at_start,
+                   "listening_sockets": listening_sockets(),
                    "iterations": O.iter,
                    "dt": O.dt}, fh)
 

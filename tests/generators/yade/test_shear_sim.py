@@ -1,0 +1,68 @@
+"""A real, tiny YADE direct-shear test: packing settled, lower box sheared, converted to H5MD and checked."""
+
+import numpy as np
+import pytest
+
+from generators import config, convert, h5md, sweep
+from generators.scenes import shear
+from generators.yade import shear as yade_shear
+
+pytestmark = pytest.mark.engine
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 6}})["shear"]
+    root = tmp_path_factory.mktemp("shear")
+    yade_shear.settle(shear.packings(cfg)[0], root / "packing")
+    table = sweep.build("shear", cfg)
+    row = table.iloc[-1].to_dict()                          # the stiffest modulus, the largest displacement
+    meta = yade_shear.simulate(row, root / "packing", root / "raw")
+    traj = h5md.read(convert.convert("shear", root / "raw", root / "sim.h5"))
+    return {"cfg": cfg, "row": row, "meta": meta, "traj": traj, "packing": yade_shear.read_packing(root / "packing")}
+
+
+def test_count_constant_types_soil_and_box(tiny):
+    traj, packing = tiny["traj"], tiny["packing"]
+    assert traj.position.shape == (6, len(packing.x), 3)
+    assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL}
+    assert np.array_equal(traj.kinematic, traj.species == shear.BOX)
+    assert (traj.species == shear.SOIL).sum() > 10
+
+
+def test_box_particles_follow_their_prescribed_motion_exactly(tiny):
+    """Lower half: x0 + v t (v chosen so the last frame is at exactly the displacement); upper half: held."""
+    traj, packing, meta = tiny["traj"], tiny["packing"], tiny["meta"]
+    lower = packing.lower
+    upper = (packing.species == shear.BOX) & ~lower
+    t = traj.time - traj.time[0]
+    expected = packing.x[lower][None] + np.outer(t, [meta["shear_speed"], 0.0, 0.0])[:, None, :]
+    np.testing.assert_allclose(traj.position[:, lower], expected, rtol=0, atol=1e-7)      # float32 storage
+    np.testing.assert_allclose(traj.position[:, upper], np.repeat(packing.x[upper][None], 6, axis=0), rtol=0, atol=1e-7)
+    shift = traj.position[-1, lower, 0] - traj.position[0, lower, 0]
+    np.testing.assert_allclose(shift, tiny["row"]["displacement"], rtol=1e-5)
+
+
+def test_no_soil_escapes_the_box(tiny):
+    traj, cfg = tiny["traj"], tiny["cfg"]
+    soil = traj.position[:, traj.species == shear.SOIL]
+    length, width, _ = cfg["box"]
+    assert soil[..., 1].min() > 0 and soil[..., 1].max() < width
+    assert soil[..., 0].min() > 0 and soil[..., 0].max() < length + tiny["row"]["displacement"]
+    assert soil[..., 2].min() > 0
+
+
+def test_modulus_is_a_log_scaled_property_and_time_step_follows_it(tiny):
+    traj, row = tiny["traj"], tiny["row"]
+    assert traj.property_names == ("young",)
+    np.testing.assert_allclose(traj.properties[:, 0], row["young"], rtol=1e-6)
+    assert traj.parameters["log_scaled_properties"] == ["young"]
+    dt, limit, _ = shear.dem_step(row, "test")
+    assert traj.parameters["dem_time_step"] == pytest.approx(dt) and dt < limit
+    softer = dict(row, young=row["young"] / 100)
+    assert shear.dem_step(softer, "test")[0] == pytest.approx(10 * dt)        # dt ~ 1/sqrt(E)
+
+
+def test_yade_left_no_server_open(tiny):
+    assert tiny["meta"]["servers_closed"] == 2
+    assert tiny["meta"]["listening_sockets"] == []
