@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from generators import h5md
@@ -189,3 +190,44 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     for k in (2, 6):
         assert (res / f"k{k}" / "plots" / "rollout.gif").is_file()
         assert (res / "benchmarks" / f"train_k{k}.tsv").is_file() and (res / "logs" / f"train_k{k}.log").is_file()
+
+
+@pytest.fixture(scope="module")
+def two_scenes(tmp_path_factory):
+    """The meteorite (LAMMPS, 2D) and shear (YADE, 3D) scenes end to end at the ci scale, under -c2:
+    two engine jobs run side by side (two YADE processes for the shear)."""
+    wd = tmp_path_factory.mktemp("scenes")
+    proc = snakemake(wd, "results/meteorite/metrics.csv", "results/shear/metrics.csv", "-c2", config=())
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return wd
+
+
+@pytest.mark.parametrize("scene, dim, metrics", [
+    ("meteorite", 2, {"Imp Dep", "Cra Dep", "Imp R(L)", "Imp R(R)", "Sp Num(L)", "Sp Num(R)", "Max Ht(L)",
+                      "Max Ht(R)", "Mean Ht(L)", "Mean Ht(R)"}),
+    ("shear", 3, {"Mean x", "Above sum", "Above mean", "Below sum", "Below mean", "Failure Surface sum",
+                  "Failure Surface mean", "All sum", "All mean"}),
+])
+def test_scene_outputs(two_scenes, scene, dim, metrics):
+    import pandas as pd
+    res = two_scenes / "results" / scene
+    stats = json.loads((res / "dataset" / "stats.json").read_text())
+    assert stats["dim"] == dim and stats["n_types"] == 2
+    table = pd.read_csv(res / "metrics.csv")
+    assert metrics | {"rollout MSE"} <= set(table["metric"])
+    mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index("method")["mse"]
+    assert np.isfinite(mse["graphdem"]) and mse["graphdem"] > 0 and np.isfinite(mse["constant_velocity"])
+    steps = pd.read_csv(res / "metrics_per_step.csv")
+    assert set(steps["method"]) == {"graphdem", "constant_velocity"}
+    for name in ("metrics_over_frames.png", "rollout.gif", "dataset_sample.png"):
+        assert (res / "plots" / name).stat().st_size > 5_000
+    for rule in ("sweep", "dataset", "train", "evaluate"):
+        assert (res / "benchmarks" / f"{rule}.tsv").is_file() and (res / "logs" / f"{rule}.log").is_file()
+
+
+def test_shear_property_and_log_scaling_reach_the_dataset(two_scenes):
+    stats = json.loads((two_scenes / "results" / "shear" / "dataset" / "stats.json").read_text())
+    assert stats["property_names"] == ["young"] and stats["kinematic_species"] == [0]
+    assert stats["property_stats"]["young"]["log"] is True
+    meteorite = json.loads((two_scenes / "results" / "meteorite" / "dataset" / "stats.json").read_text())
+    assert meteorite["property_names"] == [] and meteorite["kinematic_species"] == []
