@@ -135,6 +135,11 @@ def _check_semantics(config: dict) -> None:
         for key, rng in cfg["sweep"].items():
             if isinstance(rng, list) and len(rng) == 2 and key != "displacements" and rng[0] > rng[1]:
                 raise ConfigError(f"config key '{scene}.sweep.{key}' = {rng} must be [min, max] with min <= max")
+    meteorite = config.get("meteorite")
+    if meteorite and meteorite["contact_frame"] >= meteorite["model"]["history"]:
+        raise ConfigError(f"config key 'meteorite.contact_frame' = {meteorite['contact_frame']} must be below "
+                          f"'meteorite.model.history' = {meteorite['model']['history']}: the impact point x0 is taken "
+                          "at first contact, which must lie in the history both truth and prediction share")
     shear = config.get("shear")
     if shear and shear["wall_radius"] * (shear["wall_spacing"] / 2**0.5 - 1.0) >= shear["radius"][0]:
         raise ConfigError(f"config keys 'shear.wall_radius' = {shear['wall_radius']} and 'shear.wall_spacing' = "

@@ -115,6 +115,17 @@ def loose_packing(cfg: dict) -> Particles:
                      np.concatenate([box.species, soil.species]), np.concatenate([box.lower, soil.lower]))
 
 
+def check_filled(settled: Particles, cfg: dict, where: str) -> None:
+    """Refuse a settled pour whose soil does not reach the box height H: trimming it would leave the box
+    under-filled (and the sets above the split plane thin or empty)."""
+    soil = settled.species == SOIL
+    top = float((settled.x[soil, 2] + settled.radius[soil]).max())
+    if top < cfg["box"][2]:
+        raise ValueError(f"{where}: the settled soil reaches z = {top:.4g} m, below the box height "
+                         f"H = {cfg['box'][2]:.4g} m (config 'shear.box'); the pour of {FILL_FACTOR:g} box heights "
+                         "settled too low: use smaller soil spheres ('shear.radius') or a lower box")
+
+
 def trim(settled: Particles, cfg: dict) -> Particles:
     """The settled packing cut to the box: soil whose top is above H and wall rows above H removed."""
     height = cfg["box"][2]

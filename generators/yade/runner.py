@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -42,7 +43,13 @@ def executable() -> str:
 
 
 def version() -> str:
-    out = subprocess.run([executable(), "--version"], capture_output=True, text=True, timeout=120).stdout
+    return _version(executable())
+
+
+@functools.cache
+def _version(path: str) -> str:
+    """`yade --version` once per executable and process (each call starts YADE)."""
+    out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=120).stdout
     match = re.search(r"Yade version:\s*(\S+)", out)
     return match.group(1) if match else "unknown"
 

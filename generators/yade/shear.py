@@ -45,6 +45,7 @@ def settle(params: dict, out_dir: Path) -> dict:
         arrays, run = runner.run(job, tmp, "settle")
         _listening(run, f"packing {out_dir.name}")
         settled = shear.Particles(arrays["position"], loose.radius, loose.species, loose.lower)
+        shear.check_filled(settled, params, f"packing {out_dir.name}")
         packing = shear.trim(settled, params)
         lower, upper = shear.domain(params, 0.0)
         stability.check_trajectory(f"packing {out_dir.name}", packing.x[None], packing.radius,
@@ -84,8 +85,8 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
         tmp.mkdir()
         try:
             arrays, run = runner.run(job, tmp, "shear")
-        except runner.YadeError as exc:
-            raise stability.BlowUp(sim, 0, str(exc)) from exc
+        except runner.YadeError as exc:   # a failed run, not a numerical blow-up (check_trajectory names those)
+            raise runner.YadeError(f"{sim}: {exc}") from exc
         _listening(run, sim)
         lower, upper = shear.domain(row, row["displacement"])
         kinematic = packing.species == shear.BOX

@@ -97,8 +97,11 @@ class MeteoriteMetrics:
                 return how(np.where(mask, values, np.nan), axis=1)
 
         depth = reduce(disturbed, y_g - y, np.nanmax)
-        left_reach = reduce(disturbed, x0 - x, np.nanmax)
-        right_reach = reduce(disturbed, x - x0, np.nanmax)
+        # reach on each side counts only that side's disturbed particles (one at x0 counts on both with 0);
+        # a side with none is NaN, never a negative reach
+        with np.errstate(invalid="ignore"):
+            left_reach = reduce(disturbed & (x <= x0), x0 - x, np.nanmax)
+            right_reach = reduce(disturbed & (x >= x0), x - x0, np.nanmax)
         # crater: lowest point of the surface profile between the outermost disturbed particles
         profile = self.profile(position)
         centres = (np.arange(profile.shape[1]) + 0.5) * d

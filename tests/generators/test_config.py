@@ -54,3 +54,16 @@ def test_yaml11_exponent_strings_become_numbers():
     # PyYAML (and so `snakemake --config slide='{young: 5.0e9}'`) reads 5.0e9 as a string.
     assert config.load({"slide": {"young": "5.0e9"}})["slide"]["young"] == 5.0e9
     assert config.load({"slide": {"frames": "12"}})["slide"]["frames"] == 12
+
+
+def test_meteorite_contact_outside_the_history_is_refused():
+    paper = config.load({"scale": "paper"})["meteorite"]
+    assert paper["contact_frame"] < paper["model"]["history"]
+    with pytest.raises(config.ConfigError,
+                       match=r"meteorite\.contact_frame' = 6 must be below 'meteorite\.model\.history' = 6"):
+        config.load({"meteorite": {"contact_frame": 6}})
+
+
+def test_shear_walls_with_holes_wider_than_the_soil_are_refused():
+    with pytest.raises(config.ConfigError, match=r"shear\.wall_radius.*shear\.wall_spacing.*holes"):
+        config.load({"shear": {"wall_spacing": 2.0, "wall_radius": 0.009}})   # holes 3.7 mm > 3.5 mm soil

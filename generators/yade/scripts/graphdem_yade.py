@@ -2,8 +2,9 @@
 
 It imports only yade, numpy and the standard library. Modes (job["mode"]):
 
-- ``settle``: spheres under gravity with viscous (non-objective) damping until the kinetic energy
-  per soil sphere is below the tolerance or the time limit is reached; writes the final positions.
+- ``settle``: spheres under gravity with Cundall's non-viscous local damping
+  (``NewtonIntegrator.damping``) until the kinetic energy per soil sphere is below the tolerance or
+  the time limit is reached; writes the final positions.
 - ``shear``: the direct-shear run: lower-half box spheres move at constant velocity, the rest of
   the box is held, and the positions of every sphere are recorded every ``every`` steps.
 - ``collision``: two equal spheres approach head-on; writes their relative normal velocity before

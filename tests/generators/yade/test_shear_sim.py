@@ -66,3 +66,12 @@ def test_modulus_is_a_log_scaled_property_and_time_step_follows_it(tiny):
 def test_yade_left_no_server_open(tiny):
     assert tiny["meta"]["servers_closed"] == 2
     assert tiny["meta"]["listening_sockets"] == []
+
+
+def test_a_pour_that_settles_below_the_box_height_is_refused(tiny):
+    packing, cfg = tiny["packing"], tiny["cfg"]
+    settled_high = shear.Particles(packing.x + np.array([0.0, 0.0, cfg["box"][2]]), packing.radius,
+                                   packing.species, packing.lower)
+    shear.check_filled(settled_high, cfg, "packing p")                          # reaches above H: accepted
+    with pytest.raises(ValueError, match=r"packing p: the settled soil reaches z = .* below the box height"):
+        shear.check_filled(packing.subset(packing.x[:, 2] < 0.5 * cfg["box"][2]), cfg, "packing p")

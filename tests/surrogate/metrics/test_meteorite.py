@@ -56,6 +56,15 @@ def test_splash_sides_split_at_the_impact_point():
     assert m["Imp R(L)"][2] == pytest.approx(22.0)
 
 
+def test_a_side_with_no_disturbed_particle_has_no_reach():
+    metrics, pos = impact()
+    pos = pos.copy()
+    pos[2, 2] = [30, -4]                   # every disturbed disc now lies right of x0 = 25
+    m = metrics(pos)
+    assert np.isnan(m["Imp R(L)"][2])      # not the negative 25 - 30
+    assert m["Imp R(R)"][2] == 13.0
+
+
 def test_a_non_finite_frame_gives_nan_not_a_number():
     metrics, pos = impact()
     pos = pos.copy()
