@@ -20,7 +20,7 @@ SCENE_PARAMS = {
     "meteorite": ("domain", "gravity", "radius", "bed_depth", "meteorite_radius", "density", "young", "kt_over_kn",
                   "restitution", "friction", "rolling_friction", "dt_safety", "dt", "frames", "contact_frame",
                   "frame_interval", "max_overlap", "max_energy_gain", "engine"),
-    "shear": ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "poisson", "restitution",
+    "shear": ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "kt_over_kn", "restitution",
               "friction", "dt_safety", "dt", "shear_speed", "frames", "max_overlap", "failure_band", "engine"),
 }
 

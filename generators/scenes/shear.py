@@ -23,7 +23,7 @@ BOX, SOIL = 0, 1
 SPECIES_NAMES = {BOX: "box", SOIL: "soil"}
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
 
-PACKING_KEYS = ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "poisson",
+PACKING_KEYS = ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "kt_over_kn",
                 "restitution", "friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
                 "max_overlap")
 

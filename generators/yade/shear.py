@@ -20,7 +20,8 @@ RAW_FILE = "frames.npz"
 
 
 def _material(p: dict, dt: float) -> dict:
-    return {"young": p["young"], "poisson": p["poisson"], "restitution": p["restitution"],
+    # YADE's ViscElMat calls the tangential/normal stiffness ratio `poisson` (ks = kn * poisson)
+    return {"young": p["young"], "poisson": p["kt_over_kn"], "restitution": p["restitution"],
             "density": p["density"], "friction": p["friction"], "gravity": p["gravity"], "dt": dt}
 
 
@@ -118,7 +119,8 @@ def collision(young: float, radius: float, restitution: float, density: float, s
     """Measured restitution of a head-on collision of two equal spheres in YADE."""
     kn = young * radius
     dt = dt_safety * 2.0 / math.sqrt(2.0 * kn / shear.sphere_mass(density, radius))
-    job = {"mode": "collision", "young": young, "poisson": 0.3, "restitution": restitution, "density": density,
+    job = {"mode": "collision", "young": young, "poisson": 0.3,   # ks / kn; no tangential load head-on
+           "restitution": restitution, "density": density,
            "friction": 0.5, "gravity": 0.0, "dt": dt, "radius": [radius], "speed": speed}
     arrays, run = runner.run(job, Path(workdir), "collision")
     return float(arrays["after"] / arrays["before"]), run
