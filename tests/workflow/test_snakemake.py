@@ -150,6 +150,15 @@ def test_bad_config_stops_before_anything_runs(tmp_path, override, expected):
     assert not (tmp_path / "results").exists()
 
 
+@pytest.mark.parametrize("stage", ["stability", "benchmark"])
+def test_a_stage_a_scene_has_no_section_for_stops_with_what_exists(tmp_path, stage):
+    proc = snakemake(tmp_path, f"results/meteorite/{stage}.csv", "-n")
+    assert proc.returncode != 0
+    assert (f"the {stage} stage is configured for ['slide'] only; config has no 'meteorite.{stage}' section"
+            in proc.stdout + proc.stderr)
+    assert not (tmp_path / "results").exists()
+
+
 SOLIDGN = ROOT.parent / "shared" / "datasets" / "solidgn"
 BENCH = "results/slide_small/metrics.csv"
 

@@ -9,8 +9,8 @@ rule benchmark_dem:
     params:
         variant=contender_json("dem"),
         sims=benchmarked_rows_json,
-        history=lambda wc: CFG[wc.scene]["model"]["history"],
-        repeats=lambda wc: CFG[wc.scene]["benchmark"]["repeats"],
+        history=history_length,
+        repeats=stage_setting("benchmark", "repeats"),
         body=body_displacement_arg,
     threads: 64
     log:
@@ -32,8 +32,8 @@ rule benchmark_surrogate:
     params:
         variant=contender_json("surrogate"),
         runtime=runtime_json,
-        repeats=lambda wc: CFG[wc.scene]["benchmark"]["repeats"],
-        threads=lambda wc: CFG[wc.scene]["benchmark"]["threads"],
+        repeats=stage_setting("benchmark", "repeats"),
+        threads=stage_setting("benchmark", "threads"),
         body=body_displacement_arg,
     threads: 64
     log:
@@ -54,8 +54,8 @@ rule benchmark:
         table=report("results/{scene}/benchmark.csv", caption="../report/benchmark.rst", category="benchmark"),
         plot=report("results/{scene}/plots/pareto.png", caption="../report/benchmark.rst", category="benchmark"),
     params:
-        main=lambda wc: CFG[wc.scene]["benchmark"]["main"],
-        reference=lambda wc: CFG[wc.scene]["benchmark"]["reference"],
+        main=stage_setting("benchmark", "main"),
+        reference=stage_setting("benchmark", "reference"),
     log:
         "results/{scene}/logs/benchmark.log",
     benchmark:

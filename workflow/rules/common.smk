@@ -180,12 +180,34 @@ def protocol_metrics_per_step(wildcards) -> list[str]:
     return benchmark_protocols(wildcards, "metrics_per_step.csv")
 
 
+def stage_config(scene: str, stage: str) -> dict:
+    """The scene's config section of an optional stage (stability, benchmark); a clear stop where the
+    scene has none."""
+    section = CFG[scene].get(stage)
+    if section is None:
+        have = [name for name in SCENES if CFG.get(name, {}).get(stage) is not None]
+        raise ValueError(f"results/{scene}/{stage}.csv: the {stage} stage is configured for {have} only; "
+                         f"config has no '{scene}.{stage}' section")
+    return section
+
+
+def stage_setting(stage: str, key: str):
+    """Input function: one setting of the scene's ``stage`` section."""
+    def setting(wildcards):
+        return stage_config(wildcards.scene, stage)[key]
+    return setting
+
+
+def history_length(wildcards) -> int:
+    return CFG[wildcards.scene]["model"]["history"]
+
+
 def stressed_ids(wildcards) -> list[str]:
     """The test sims of the stability stress tests (the first stability.sims)."""
     ids = test_ids(wildcards.scene)
     if not ids:
         raise ValueError(f"{wildcards.scene}: the sweep has no test sim to stress")
-    return ids[: CFG[wildcards.scene]["stability"]["sims"]]
+    return ids[: stage_config(wildcards.scene, "stability")["sims"]]
 
 
 def stressed_sims(wildcards) -> list[str]:
@@ -203,11 +225,11 @@ def stressed_row_json(wildcards) -> str:
 
 
 def dem_stress_factors(wildcards) -> str:
-    return " ".join(f"{f:g}" for f in CFG[wildcards.scene]["stability"]["dem_dt_factors"])
+    return " ".join(f"{f:g}" for f in stage_config(wildcards.scene, "stability")["dem_dt_factors"])
 
 
 def surrogate_stress_args(wildcards) -> dict:
-    s = CFG[wildcards.scene]["stability"]
+    s = stage_config(wildcards.scene, "stability")
     return {"lengths": " ".join(str(n) for n in s["rollout_lengths"]), "noise": s["history_noise"],
             "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
 
@@ -217,7 +239,7 @@ def benchmarked_ids(wildcards) -> list[str]:
     ids = test_ids(wildcards.scene)
     if not ids:
         raise ValueError(f"{wildcards.scene}: the sweep has no test sim to benchmark")
-    return ids[: CFG[wildcards.scene]["benchmark"]["sims"]]
+    return ids[: stage_config(wildcards.scene, "benchmark")["sims"]]
 
 
 def benchmarked_sims(wildcards) -> list[str]:
@@ -237,7 +259,7 @@ def benchmarked_packings(wildcards) -> list[str]:
 def contender_json(kind: str):
     """Input function: the changes of one benchmark contender of ``kind`` (dem or surrogate)."""
     def changes(wildcards) -> str:
-        contenders = CFG[wildcards.scene]["benchmark"][kind]
+        contenders = stage_config(wildcards.scene, "benchmark")[kind]
         if wildcards.contender not in contenders:
             raise ValueError(f"{wildcards.scene}: no {kind} contender {wildcards.contender!r} in "
                              f"benchmark.{kind}; configured: {sorted(contenders)}")
@@ -246,6 +268,6 @@ def contender_json(kind: str):
 
 
 def contender_tables(wildcards) -> list[str]:
-    b = CFG[wildcards.scene]["benchmark"]
+    b = stage_config(wildcards.scene, "benchmark")
     return [f"results/{wildcards.scene}/benchmark/{kind}/{name}.csv" for kind in ("dem", "surrogate")
             for name in b[kind]]

@@ -11,7 +11,7 @@ rule evaluate:
                       category="evaluation"),
         gif=report("results/{scene}/plots/rollout.gif", caption="../report/rollout.rst", category="evaluation"),
     params:
-        history=lambda wc: CFG[wc.scene]["model"]["history"],
+        history=history_length,
         body=body_displacement_arg,
     threads: 1
     log:
