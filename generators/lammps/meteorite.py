@@ -12,6 +12,7 @@ import pandas as pd
 from generators import stability
 from generators.atomic import atomic_path
 from generators.lammps import io, pair, runner
+from generators.lammps import slide as lammps_slide
 from generators.scenes import meteorite
 
 PACKING_FILE = "packing.csv"
@@ -95,11 +96,7 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
         lower, upper = _bounds(row)
         stability.check_trajectory(sim, raw["position"], raw["radius"], raw["kinematic"], lower, upper,
                                    row["max_overlap"])
-        thermo = io.read_thermo(tmp / "log.lammps").drop_duplicates("Step", keep="last").set_index("Step")
-        kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
-        potential = row["gravity"] * (raw["position"][:, :, 1] * raw["mass"]).sum(axis=1)
-        scale = row["gravity"] * raw["mass"].sum() * 2.0 * raw["radius"].mean()
-        stability.check_energy(sim, kinetic, potential, scale, row["max_energy_gain"])
+        kinetic = lammps_slide.check_energy(sim, raw, io.read_thermo(tmp / "log.lammps"), row)
         (window_seconds, window_steps) = io.loop_times(tmp / "log.lammps")[-1]
         meta = {
             "params": row, "engine": "lammps", "engine_version": run.version, "command": run.command,

@@ -123,9 +123,10 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
     return meta
 
 
-def check_energy(sim: str, raw: dict, thermo: pd.DataFrame, row: dict) -> None:
-    """Kinetic (thermo, translational + rotational) plus gravitational energy of the soil at the
-    recorded frames must not grow (stability.check_energy)."""
+def check_energy(sim: str, raw: dict, thermo: pd.DataFrame, row: dict) -> np.ndarray:
+    """Kinetic (thermo, translational + rotational) plus gravitational energy of the moving particles
+    at the recorded frames must not grow (stability.check_energy); returns the kinetic energy per
+    frame. Shared by the LAMMPS scenes (2D, y up)."""
     thermo = thermo.drop_duplicates("Step", keep="last").set_index("Step")
     missing = sorted(set(raw["step"].tolist()) - set(thermo.index.astype(int).tolist()))
     if missing:
@@ -136,6 +137,7 @@ def check_energy(sim: str, raw: dict, thermo: pd.DataFrame, row: dict) -> None:
     potential = row["gravity"] * (raw["position"][:, soil, 1] * mass).sum(axis=1)
     scale = row["gravity"] * mass.sum() * 2.0 * raw["radius"][soil].mean()
     stability.check_energy(sim, kinetic, potential, scale, row["max_energy_gain"])
+    return kinetic
 
 
 def read_raw(raw_dir: Path) -> dict:
