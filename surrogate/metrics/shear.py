@@ -18,7 +18,7 @@ class ShearMetrics:
     kinematic: np.ndarray        # [N] bool
     height0: np.ndarray          # [N] m, z at frame 0
     split_height: float          # m
-    band: float = 0.005          # m
+    band: float                  # m, half-width of the failure-surface sets (config shear.failure_band)
 
     names = ("Mean x",)
     sets = ("Above", "Below", "Failure Surface", "All")
@@ -27,8 +27,12 @@ class ShearMetrics:
     @classmethod
     def for_trajectory(cls, traj, body_displacement: float | None = None) -> ShearMetrics:
         p = traj.parameters
+        missing = [k for k in ("split_height", "failure_band") if k not in p]
+        if missing:
+            raise ValueError(f"shear metrics need the parameters {missing} in the H5MD file's parameters; "
+                             "files written by `graphdem convert` for the shear scene carry them")
         return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.position[0, :, 2], float),
-                   float(p["split_height"]), float(p.get("failure_band", 0.005)))
+                   float(p["split_height"]), float(p["failure_band"]))
 
     def members(self) -> dict[str, np.ndarray]:
         soil, z, zs = ~self.kinematic, self.height0, self.split_height
