@@ -70,6 +70,11 @@ def disc_mass(density: float, radius: float, thickness: float = 1.0) -> float:
     return density * math.pi * radius**2 * thickness
 
 
+def sphere_mass(density: float, radius: float) -> float:
+    """Mass of a sphere (3D scenes)."""
+    return density * 4.0 / 3.0 * math.pi * radius**3
+
+
 def stable_time_step(min_mass: float, kn: float) -> float:
     """Stable limit of velocity Verlet for the stiffest pair contact.
 
@@ -89,3 +94,12 @@ def choose_time_step(limit: float, safety: float, requested: float | None, where
             f"{limit:.4g} s (= 2/sqrt(2 kn/m_min)); use dt <= {limit:.4g} s or leave dt unset "
             f"for dt_safety * limit")
     return requested
+
+
+def disc_time_step(cfg: dict, where: str) -> tuple[float, float, float]:
+    """(dt, stable limit, kn) of a 2D scene of discs (LAMMPS, unit thickness): kn from the modulus
+    and the mean radius, the limit at two of the smallest moving discs (fixed particles have
+    infinite mass)."""
+    kn = normal_stiffness(cfg["young"], 0.5 * (cfg["radius"][0] + cfg["radius"][1]))
+    limit = stable_time_step(disc_mass(cfg["density"], cfg["radius"][0]), kn)
+    return choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn

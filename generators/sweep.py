@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from generators.scenes import meteorite, shear, slide
+from generators.scenes.packing import packing_key
 
 SPLITS = ("train", "valid", "test")
 SCENE_PARAMS = {
@@ -43,7 +44,7 @@ def split_labels(n: int, fractions: list[float], seed: int) -> list[str]:
 def slide_sweep(cfg: dict) -> pd.DataFrame:
     rows = []
     labels = split_labels(cfg["n_sims"], cfg["split"], cfg["seed"])
-    keys = [slide.packing_key(slide.packing_params(cfg, j)) for j in range(cfg["n_packings"])]
+    keys = [packing_key(slide.packing_params(cfg, j)) for j in range(cfg["n_packings"])]
     for i in range(cfg["n_sims"]):
         rng = np.random.default_rng([cfg["seed"], i])
         row = {"id": f"slide_{i:04d}", "split": labels[i], "seed": int(rng.integers(2**31 - 1))}
@@ -87,14 +88,14 @@ def meteorite_sweep(cfg: dict) -> pd.DataFrame:
     """The impact angle x speed grid (article 5.1: 31 x 31 at paper scale); every sim shares one bed."""
     sw = cfg["sweep"]
     axes = {"angle": _grid(*sw["angle"], sw["n_angles"]), "speed": _grid(*sw["speed"], sw["n_speeds"])}
-    return _grid_sweep("meteorite", cfg, axes, meteorite.packing_key(meteorite.packings(cfg)[0]))
+    return _grid_sweep("meteorite", cfg, axes, packing_key(meteorite.packings(cfg)[0]))
 
 
 def shear_sweep(cfg: dict) -> pd.DataFrame:
     """The soil modulus x shear displacement grid; every sim shares one packing. ``domain_displacement``
     (the largest displacement) fixes the same data bounds for every sim."""
     axes = {"young": shear.young_values(cfg), "displacement": [float(d) for d in cfg["sweep"]["displacements"]]}
-    table = _grid_sweep("shear", cfg, axes, shear.packing_key(shear.packings(cfg)[0]))
+    table = _grid_sweep("shear", cfg, axes, packing_key(shear.packings(cfg)[0]))
     table["domain_displacement"] = max(axes["displacement"])
     return table
 

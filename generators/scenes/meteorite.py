@@ -12,14 +12,13 @@ down), moving towards +x, and its path is aimed so that it first touches the bed
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from generators import contact
+from generators.scenes import packing
 
 GROUND, METEORITE = 0, 1
 SPECIES_NAMES = {GROUND: "ground", METEORITE: "meteorite"}
@@ -33,20 +32,12 @@ PACKING_KEYS = (
 
 
 def packing_params(cfg: dict, index: int = 0) -> dict:
-    params = {k: cfg[k] for k in PACKING_KEYS}
-    params["seed"] = int(cfg["seed"])
-    params["packing_index"] = int(index)
-    return params
+    return packing.packing_params(cfg, PACKING_KEYS, index)
 
 
 def packings(cfg: dict) -> list[dict]:
     """Every packing the scene's sweep uses: one bed, shared by every sim."""
     return [packing_params(cfg, 0)]
-
-
-def packing_key(params: dict) -> str:
-    digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:10]
-    return f"p{params['packing_index']}-{digest}"
 
 
 @dataclass(frozen=True)
@@ -134,10 +125,4 @@ def place_meteorite(row: dict, bed: Particles) -> tuple[Particles, np.ndarray]:
                       np.concatenate([bed.species, np.full(len(xy), METEORITE)])), velocity)
 
 
-def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
-    """(dt, stable limit, kn) of the contact model at the smallest particle."""
-    r_mean = 0.5 * (cfg["radius"][0] + cfg["radius"][1])
-    kn = contact.normal_stiffness(cfg["young"], r_mean)
-    m_min = contact.disc_mass(cfg["density"], cfg["radius"][0])
-    limit = contact.stable_time_step(m_min, kn)
-    return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
+dem_step = contact.disc_time_step

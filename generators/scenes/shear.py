@@ -12,12 +12,13 @@ centres lie one wall radius outside them on a square grid of spacing ``wall_spac
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from generators import contact
+from generators.scenes import packing
 
 BOX, SOIL = 0, 1
 SPECIES_NAMES = {BOX: "box", SOIL: "soil"}
@@ -41,10 +42,7 @@ def young_values(cfg: dict) -> list[float]:
 
 
 def packing_params(cfg: dict, young: float) -> dict:
-    params = {k: cfg[k] for k in PACKING_KEYS}
-    params["young"] = float(young)
-    params["seed"] = int(cfg["seed"])
-    return params
+    return packing.packing_params(cfg, PACKING_KEYS, young=float(young))
 
 
 def packings(cfg: dict) -> list[dict]:
@@ -55,11 +53,6 @@ def packings(cfg: dict) -> list[dict]:
     sim starts by sagging a few micrometres (never by springing apart).
     """
     return [packing_params(cfg, max(young_values(cfg)))]
-
-
-def packing_key(params: dict) -> str:
-    digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:10]
-    return f"p0-{digest}"
 
 
 @dataclass(frozen=True)
@@ -134,19 +127,14 @@ def trim(settled: Particles, cfg: dict) -> Particles:
     return settled.subset(keep)
 
 
-def sphere_mass(density: float, radius: float) -> float:
-    return density * 4.0 / 3.0 * math.pi * radius**3
-
-
 def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
     """(dt, stable limit, kn) of the soil contact at the smallest sphere.
 
     kn = 2 E r1 r2 / (r1 + r2) (YADE's ViscElMat from Young's modulus) is E r_min for two of the
     smallest spheres, the stiffest oscillator relative to its mass: dt_crit = 2 / sqrt(2 kn / m_min).
     """
-    from generators import contact
     kn = cfg["young"] * cfg["radius"][0]
-    limit = contact.stable_time_step(sphere_mass(cfg["density"], cfg["radius"][0]), kn)
+    limit = contact.stable_time_step(contact.sphere_mass(cfg["density"], cfg["radius"][0]), kn)
     return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
 
 

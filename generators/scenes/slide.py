@@ -8,14 +8,13 @@ and the soil above it slides down the slope. Species ids: 0 bedrock (kinematic),
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from generators import contact
+from generators.scenes import packing
 
 BEDROCK, STABLE, WEAK = 0, 1, 2
 SPECIES_NAMES = {BEDROCK: "bedrock", STABLE: "stable soil", WEAK: "sliding-prone soil"}
@@ -37,16 +36,7 @@ def polyline_y(points: list[list[float]], x: np.ndarray) -> np.ndarray:
 
 def packing_params(cfg: dict, index: int) -> dict:
     """The packing-relevant parameters of packing ``index`` (its seed included)."""
-    params = {k: cfg[k] for k in PACKING_KEYS}
-    params["seed"] = int(cfg["seed"])
-    params["packing_index"] = int(index)
-    return params
-
-
-def packing_key(params: dict) -> str:
-    """A short content key: identical parameters share one settled packing."""
-    digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:10]
-    return f"p{params['packing_index']}-{digest}"
+    return packing.packing_params(cfg, PACKING_KEYS, index)
 
 
 @dataclass(frozen=True)
@@ -136,12 +126,4 @@ def assign_layers(particles: Particles, weak_base: float, weak_thickness: float,
     return species
 
 
-def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
-    """(dt, stable limit, kn) of the scene's contact model at its smallest particle."""
-    r_mean = 0.5 * (cfg["radius"][0] + cfg["radius"][1])
-    kn = contact.normal_stiffness(cfg["young"], r_mean)
-    # Bedrock is fixed (infinite mass): the stiffest oscillator is two of the smallest soil discs.
-    m_min = contact.disc_mass(cfg["density"], cfg["radius"][0])
-    limit = contact.stable_time_step(m_min, kn)
-    dt = contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where)
-    return dt, limit, kn
+dem_step = contact.disc_time_step      # bedrock is fixed: the limit is at two of the smallest soil discs

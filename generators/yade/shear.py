@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from generators import stability
+from generators import contact, stability
 from generators.atomic import atomic_path
 from generators.scenes import shear
 from generators.yade import runner
@@ -36,7 +35,7 @@ def settle(params: dict, out_dir: Path) -> dict:
     """Pour the loose soil into the box (walls extended upwards), settle it, trim it at the box height."""
     loose = shear.loose_packing(params)
     dt, limit, _ = shear.dem_step(params, where=f"packing E = {params['young']:g} Pa")
-    m_mean = shear.sphere_mass(params["density"], 0.5 * sum(params["radius"]))
+    m_mean = contact.sphere_mass(params["density"], 0.5 * sum(params["radius"]))
     job = {"mode": "settle", **_material(params, dt), "position": loose.x.tolist(), "radius": loose.radius.tolist(),
            "fixed": (loose.species == shear.BOX).tolist(), "damping": params["settle_damping"],
            "check_every": 0.005, "settle_time": params["settle_time"],
@@ -118,7 +117,7 @@ def collision(young: float, radius: float, restitution: float, density: float, s
               dt_safety: float = 0.02) -> tuple[float, runner.Run]:
     """Measured restitution of a head-on collision of two equal spheres in YADE."""
     kn = young * radius
-    dt = dt_safety * 2.0 / math.sqrt(2.0 * kn / shear.sphere_mass(density, radius))
+    dt = dt_safety * contact.stable_time_step(contact.sphere_mass(density, radius), kn)
     job = {"mode": "collision", "young": young, "poisson": 0.3,   # ks / kn; no tangential load head-on
            "restitution": restitution, "density": density,
            "friction": 0.5, "gravity": 0.0, "dt": dt, "radius": [radius], "speed": speed}

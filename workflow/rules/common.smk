@@ -6,6 +6,7 @@ import sys
 from generators import config as gconfig
 from generators import scenes as gscenes
 from generators import sweep as gsweep
+from generators.scenes.packing import packing_key
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
@@ -75,9 +76,8 @@ def packing_of_sim(wildcards) -> str:
 
 
 def packing_params_json(wildcards) -> str:
-    definition = gscenes.definition(wildcards.scene)
     for params in gscenes.packings(wildcards.scene, CFG[wildcards.scene]):
-        if definition.packing_key(params) == wildcards.key:
+        if packing_key(params) == wildcards.key:
             return _json(params)
     raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
 
