@@ -11,8 +11,7 @@ import pandas as pd
 
 from generators import stability
 from generators.atomic import atomic_path
-from generators.lammps import io, pair, runner
-from generators.lammps import slide as lammps_slide
+from generators.lammps import energy, io, pair, runner
 from generators.scenes import meteorite
 
 PACKING_FILE = "packing.csv"
@@ -96,7 +95,7 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
         lower, upper = _bounds(row)
         stability.check_trajectory(sim, raw["position"], raw["radius"], raw["kinematic"], lower, upper,
                                    row["max_overlap"])
-        kinetic = lammps_slide.check_energy(sim, raw, io.read_thermo(tmp / "log.lammps"), row)
+        kinetic = energy.check_energy(sim, raw, io.read_thermo(tmp / "log.lammps"), row)
         (window_seconds, window_steps) = io.loop_times(tmp / "log.lammps")[-1]
         meta = {
             "params": row, "engine": "lammps", "engine_version": run.version, "command": run.command,

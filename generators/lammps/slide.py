@@ -11,7 +11,7 @@ import pandas as pd
 
 from generators import stability
 from generators.atomic import atomic_path
-from generators.lammps import io, pair, runner
+from generators.lammps import energy, io, pair, runner
 from generators.scenes import slide
 
 PACKING_FILE = "packing.csv"
@@ -107,7 +107,7 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
         stability.check_trajectory(sim, raw["position"], raw["radius"], raw["kinematic"],
                                    np.zeros(2), np.array([width, height]), row["max_overlap"])
         thermo = io.read_thermo(tmp / "log.lammps")
-        check_energy(sim, raw, thermo, row)
+        energy.check_energy(sim, raw, thermo, row)
         (window_seconds, window_steps) = io.loop_times(tmp / "log.lammps")[-1]
         meta = {
             "params": row, "engine": "lammps", "engine_version": run.version,
@@ -121,23 +121,6 @@ def simulate(row: dict, packing_dir: Path, out_dir: Path) -> dict:
         }
         (tmp / RUN_FILE).write_text(json.dumps(meta, indent=2))
     return meta
-
-
-def check_energy(sim: str, raw: dict, thermo: pd.DataFrame, row: dict) -> np.ndarray:
-    """Kinetic (thermo, translational + rotational) plus gravitational energy of the moving particles
-    at the recorded frames must not grow (stability.check_energy); returns the kinetic energy per
-    frame. Shared by the LAMMPS scenes (2D, y up)."""
-    thermo = thermo.drop_duplicates("Step", keep="last").set_index("Step")
-    missing = sorted(set(raw["step"].tolist()) - set(thermo.index.astype(int).tolist()))
-    if missing:
-        raise io.LammpsOutputError(f"{sim}: no thermo output at recorded steps {missing[:3]}")
-    kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
-    soil = ~raw["kinematic"]
-    mass = raw["mass"][soil]
-    potential = row["gravity"] * (raw["position"][:, soil, 1] * mass).sum(axis=1)
-    scale = row["gravity"] * mass.sum() * 2.0 * raw["radius"][soil].mean()
-    stability.check_energy(sim, kinetic, potential, scale, row["max_energy_gain"])
-    return kinetic
 
 
 def read_raw(raw_dir: Path) -> dict:
