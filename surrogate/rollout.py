@@ -18,7 +18,7 @@ from generators import h5md
 from surrogate.graph import radius_graph
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
-from surrogate.simulator import Graph, LearnedSimulator, build_graph
+from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated
 
 
 @dataclass
@@ -56,23 +56,14 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
         static = kinematic | resting
         counts["asleep"] += int(resting.sum())
     edges = radius_graph(last, simulator.radius, static.numpy())
-    keep = ~static
+    graph = Graph(window, sim.types, static, edges, None if sim.props is None else sim.props.to(window.dtype))
     if runtime.prune_isolated:
-        linked = edges[:, edges[0] != edges[1]]
-        keep = keep.clone()
-        keep[linked[0]] = True
-        keep[linked[1]] = True
+        graph, index = prune_isolated(graph)
     else:
-        keep = torch.ones_like(keep)
-    index = keep.nonzero().squeeze(1)
-    remap = torch.full((len(keep),), -1, dtype=torch.long)
-    remap[index] = torch.arange(len(index))
-    sub_edges = remap[edges]
-    sub_edges = sub_edges[:, (sub_edges >= 0).all(dim=0)]
-    graph = Graph(window[:, index], sim.types[index], static[index], sub_edges,
-                  None if sim.props is None else sim.props[index].to(window.dtype))
+        index = torch.arange(len(static))
+    sub_edges = graph.edge_index
     seconds_graph = time.perf_counter() - t0
-    moving = (~static[index]).nonzero().squeeze(1)       # only these are decoded and integrated
+    moving = (~graph.kinematic).nonzero().squeeze(1)       # only these are decoded and integrated
     counts["nodes"] += len(index)
     counts["edges"] += sub_edges.shape[1]
     counts["decoded"] += len(moving)

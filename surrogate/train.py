@@ -32,7 +32,7 @@ from surrogate.errors import TrainingDiverged
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim, load_sim, sample_index
-from surrogate.simulator import LearnedSimulator, build_graph, stack_graphs
+from surrogate.simulator import LearnedSimulator, build_graph, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
 
@@ -116,10 +116,11 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     for window, following, sim in zip(windows, followings, sample_sims, strict=True):
         graphs.append(build_graph(window, sim.types, sim.kinematic, simulator.radius, sim.props))
         targets.append(simulator.target(window, following))
-    graph = stack_graphs(graphs)
-    moving = ~graph.kinematic
-    prediction = simulator(graph)
-    return ((prediction - torch.cat(targets)) ** 2)[moving].mean()
+    # isolated wall particles cannot change a prediction: left out (exact), and only moving particles decoded
+    graph, index = prune_isolated(stack_graphs(graphs))
+    moving = (~graph.kinematic).nonzero().squeeze(1)
+    prediction = simulator(graph, decode=moving)
+    return ((prediction - torch.cat(targets)[index[moving]]) ** 2).mean()
 
 
 def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:

@@ -1,7 +1,7 @@
 import numpy as np
 import torch
 
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, stack_graphs
+from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated, stack_graphs
 
 STATS = {"dim": 2, "bounds": [[0.0, 1000.0], [0.0, 1000.0]], "connectivity_radius": 3.0, "n_types": 2,
          "velocity_mean": [0.1, -0.2], "velocity_std": [0.5, 0.4],
@@ -52,3 +52,25 @@ def test_a_batch_is_the_disjoint_union_of_its_samples():
     both = stack_graphs([a, b])
     assert isinstance(both, Graph) and both.edge_index.shape[1] == a.edge_index.shape[1] + b.edge_index.shape[1]
     torch.testing.assert_close(sim(both), torch.cat([sim(a), sim(b)]))
+
+
+def test_pruning_drops_only_unlinked_kinematic_particles_and_changes_no_prediction():
+    torch.manual_seed(0)
+    sim = LearnedSimulator(STATS, MODEL).double()
+    g = sample()
+    far = torch.tensor([[800.0, 800.0], [805.0, 800.0], [20.0, 900.0]], dtype=torch.float64)   # walls far away
+    window = torch.cat([g.window, far.expand(4, 3, 2)], dim=1)
+    types = torch.cat([g.types, torch.zeros(3, dtype=torch.long)])
+    kinematic = torch.cat([g.kinematic, torch.ones(3, dtype=torch.bool)])
+    full = build_graph(window, types, kinematic, STATS["connectivity_radius"])
+    reduced, index = prune_isolated(full)
+    dropped = sorted(set(range(33)) - set(index.tolist()))
+    assert {30, 31, 32} <= set(dropped)                   # 800/805 are 5 m apart: two walls, no edge between
+    for i in dropped:                                     # only kinematic particles with nothing but a self edge
+        assert kinematic[i] and int((full.edge_index == i).any(dim=0).sum()) == 1
+    assert torch.equal(index[~reduced.kinematic], (~kinematic).nonzero().squeeze(1))
+    moving = (~reduced.kinematic).nonzero().squeeze(1)
+    torch.testing.assert_close(sim(reduced, decode=moving), sim(full)[~kinematic], rtol=1e-12, atol=1e-12)
+    supplied = window[-1] + 1.0
+    unpruned = torch.where(kinematic.unsqueeze(-1), supplied, sim.integrate(window, sim(full)))
+    torch.testing.assert_close(sim.step(full, supplied), unpruned, rtol=1e-12, atol=1e-12)
