@@ -398,7 +398,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
                    help="which split the sims are (with --data) or which to take from --splits; auto: test where "
                         "the table has one, else valid (said in every output)")
-    p.add_argument("--history", type=int, required=True, help="K, the history length the checkpoint takes")
+    p.add_argument("--history", type=int, required=True,
+                   help="K of the protocol: frames given from the data and not scored; at least the history "
+                        "length the checkpoint reads (more: each step still reads its last frames)")
     p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
     p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
     p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")

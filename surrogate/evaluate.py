@@ -94,11 +94,15 @@ def evaluation_split(splits: pd.DataFrame, choice: str) -> tuple[str, list[Path]
     return split, [Path(p) for p in splits.loc[splits["split"] == split, "path"]], note
 
 
-def read_rollout(path: Path, sha: str) -> h5md.Trajectory:
+def read_rollout(path: Path, sha: str, history: int) -> h5md.Trajectory:
     traj = h5md.read(path, allow_nonfinite=True)
     made_by = traj.parameters.get("rollout_checkpoint_sha")
     if made_by != sha:
         raise ValueError(f"{path}: this rollout was made by checkpoint {made_by}, not by {sha}; rerun the rollout")
+    given = traj.parameters.get("rollout_history")
+    if given is not None and int(given) != int(history):
+        raise ValueError(f"{path}: this rollout was given {given} frames, the evaluation {history}; "
+                         f"evaluate with --history {given} or rerun the rollout")
     return traj
 
 
@@ -144,9 +148,9 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
     simulator, meta = checkpoint.simulator_from(checkpoint_path)
     if runtime is not None:
         apply_runtime(simulator, runtime)
-    if int(meta["model"]["history"]) != int(history):
-        raise ValueError(f"{checkpoint_path} was trained with a history of K = {meta['model']['history']} "
-                         f"frames; --history {history} does not match it")
+    if int(history) < int(meta["model"]["history"]):
+        raise ValueError(f"{checkpoint_path} reads a history of K = {meta['model']['history']} frames; "
+                         f"--history {history} gives fewer (allowed: {meta['model']['history']} or more)")
     sha = checkpoint.digest(checkpoint_path)
     props = list(meta["model"].get("properties") or [])
     per_step, sims = [], []
@@ -154,7 +158,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
         traj = h5md.read(path)
         sim = load_sim(path, meta["stats"], props, traj)
         if rollouts_dir is not None:
-            predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha)
+            predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha, history)
             if predicted.position.shape != traj.position.shape:
                 raise ValueError(f"{rollouts_dir}/{sim.id}.h5: shape {predicted.position.shape} differs from the "
                                  f"sim's {traj.position.shape}")
@@ -162,7 +166,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
             bad = None if bad in (None, "null", -1) else int(bad)
             seconds = float(predicted.parameters.get("rollout_seconds_per_frame", np.nan))
         else:
-            result = rollout(simulator, sim, runtime=runtime)
+            result = rollout(simulator, sim, runtime=runtime, given=history)
             pred, bad = result.position, result.first_nonfinite
             seconds = result.seconds / max(result.n_predicted, 1)
         truth = np.asarray(traj.position, np.float64)

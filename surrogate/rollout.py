@@ -23,8 +23,8 @@ from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isol
 
 @dataclass
 class Rollout:
-    position: np.ndarray                 # [T, N, D] (float64 for a float64 rollout); frames < K are the data's
-    history: int
+    position: np.ndarray                 # [T, N, D] (float64 for a float64 rollout); frames < history are the data's
+    history: int                         # frames given (G >= the model's K)
     first_nonfinite: int | None = None   # first frame with a non-finite position, None if clean
     seconds: float = 0.0                 # wall time of the predicted frames
     seconds_graph: float = 0.0           # of which building the radius graph
@@ -77,31 +77,36 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
 
 @torch.inference_mode()
 def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, runtime: Runtime | None = None,
-            start: torch.Tensor | None = None, forced: bool = False) -> Rollout:
-    """Predict frames ``K .. n_frames-1`` (default: as many frames as the sim has).
+            start: torch.Tensor | None = None, forced: bool = False, given: int | None = None) -> Rollout:
+    """Predict frames ``G .. n_frames-1`` (default: as many frames as the sim has) from the first G.
 
-    ``runtime`` selects the switches of :mod:`surrogate.runtime` (the simulator must have been
-    prepared with :func:`surrogate.runtime.apply`); None computes as in training. ``start``
-    replaces the first K frames (e.g. a perturbed history for a stress test). ``forced`` feeds every
-    step the data's window instead of the predicted one (one-step predictions on the true graphs:
-    how an untrained model of some size is timed on representative graphs).
+    G is ``given``, by default the model's history K; a protocol may give more frames than the model
+    reads (G > K: each step still sees the last K frames). ``runtime`` selects the switches of
+    :mod:`surrogate.runtime` (the simulator must have been prepared with
+    :func:`surrogate.runtime.apply`); None computes as in training. ``start`` replaces the first G
+    frames (e.g. a perturbed history for a stress test). ``forced`` feeds every step the data's
+    window instead of the predicted one (one-step predictions on the true graphs: how an untrained
+    model of some size is timed on representative graphs).
     """
     k = simulator.history
+    g = k if given is None else int(given)
+    if g < k:
+        raise ValueError(f"{sim.path}: the model reads K = {k} frames; a rollout given {g} cannot start it")
     total = sim.n_frames if n_frames is None else int(n_frames)
-    if sim.n_frames < k + 1 or total < k + 1:
-        raise ValueError(f"{sim.path}: a rollout needs more than K = {k} frames, the sim has {sim.n_frames}")
+    if sim.n_frames < g + 1 or total < g + 1:
+        raise ValueError(f"{sim.path}: a rollout needs more than {g} frames, the sim has {sim.n_frames}")
     if forced and total > sim.n_frames:
         raise ValueError(f"{sim.path}: a forced rollout needs the data's frames, {sim.n_frames} < {total}")
     dtype = runtime.network_dtype if runtime is not None else torch.float32
     reduced = runtime is not None and (runtime.prune_isolated or runtime.sleep_speed is not None)
     positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype)
-    positions[:k] = sim.position[:k] if start is None else start
+    positions[:g] = sim.position[:g] if start is None else start
     props = None if sim.props is None else sim.props.to(dtype)
     counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0}
     first_bad = None
     t_graph = 0.0
     start_clock = time.perf_counter()
-    for t in range(k, total):
+    for t in range(g, total):
         window = sim.position[t - k:t].to(dtype) if forced else positions[t - k:t]
         # beyond the recorded window, kinematic particles stay where the data left them
         kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
@@ -128,9 +133,9 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             break
         positions[t] = nxt
     seconds = time.perf_counter() - start_clock
-    steps = max((first_bad + 1 if first_bad is not None else total) - k, 1)     # steps computed
+    steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
-    return Rollout(positions.numpy(), k, first_bad, seconds, t_graph, timing)
+    return Rollout(positions.numpy(), g, first_bad, seconds, t_graph, timing)
 
 
 def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, history: int) -> np.ndarray:

@@ -74,25 +74,29 @@ def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) 
 
 
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
-               generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0) -> torch.Tensor:
+               generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0,
+               pushforward_steps: int = 1) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
     With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
     With ``pushforward`` = p, each sample that has a frame before its window is, with probability p,
-    a pushforward sample (Brandstetter et al. 2022): its last history frame is the model's own
-    one-step prediction from the (noisy) window one frame earlier, made without gradient, and the
-    target is the true next frame. The model so learns to correct the errors it makes itself in a
-    rollout, at the cost of one extra forward pass per such sample.
+    a pushforward sample (Brandstetter et al. 2022): its history ends in the model's own predictions,
+    made without gradient from the (noisy) window m frames earlier, and the target is the true next
+    frame. m is drawn uniformly from 1 .. ``pushforward_steps`` (at most the frames there are before
+    the window). The model so learns to correct the errors it makes itself in a rollout, at the cost
+    of m extra forward passes per such sample.
     """
     k = simulator.history
     n = len(batch)
     flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
     pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
-    windows, followings, sample_sims, pushes = [], [], [], []
-    for (s, t), flip, push in zip(batch, flips.tolist(), pushed.tolist(), strict=True):
+    steps = (torch.randint(1, pushforward_steps + 1, (n,), generator=generator) if pushforward_steps > 1
+             else torch.ones(n, dtype=torch.long))
+    windows, followings, sample_sims, truths = [], [], [], []
+    for (s, t), flip, push, m in zip(batch, flips.tolist(), pushed.tolist(), steps.tolist(), strict=True):
         sim = sims[s]
-        push = push and t >= k                         # needs the frame before the window
-        frames = sim.position[t - k + 1 - int(push):t + 2]
+        m = min(m, t - k + 1) if push else 0           # pushed steps need frames before the window
+        frames = sim.position[t - k + 1 - m:t + 2]
         if flip:
             frames = mirror_x(frames, simulator.lower, simulator.upper)
         window = frames[:k]
@@ -100,15 +104,15 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
         windows.append(window + noise)
         # the target keeps the true next position relative to the noisy last one: the model learns to
         # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
-        followings.append(frames[-1] + noise[-1] if not push else frames[-1])
+        followings.append(frames[-1] + noise[-1] if m == 0 else frames[-1])
         sample_sims.append(sim)
-        pushes.append(frames[k] if push else None)     # true positions of the pushed frame (kinematic part used)
-    if any(p is not None for p in pushes):
-        which = [i for i, p in enumerate(pushes) if p is not None]
+        truths.append(frames[k:k + m])                 # true frames of the pushed steps (kinematic part used)
+    for j in range(max(len(f) for f in truths)):
+        which = [i for i, f in enumerate(truths) if len(f) > j]
         earlier = stack_graphs([build_graph(windows[i], sample_sims[i].types, sample_sims[i].kinematic,
                                             simulator.radius, sample_sims[i].props) for i in which])
         with torch.no_grad():
-            predicted = simulator.step(earlier, torch.cat([pushes[i] for i in which]))
+            predicted = simulator.step(earlier, torch.cat([truths[i][j] for i in which]))
         sizes = [windows[i].shape[1] for i in which]
         for i, frame in zip(which, predicted.split(sizes), strict=True):
             windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
@@ -244,7 +248,8 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
             loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
                               _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
-                              pushforward=float(train_cfg["pushforward"]))
+                              pushforward=float(train_cfg["pushforward"]),
+                              pushforward_steps=int(train_cfg["pushforward_steps"]))
             if not torch.isfinite(loss):
                 samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
                 raise TrainingDiverged(

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from generators import cli
+from generators import cli, h5md
 from surrogate import train
 
 pytestmark = pytest.mark.engine
@@ -56,12 +56,25 @@ def test_scene_metric_truth_is_the_same_for_both_methods(tiny_dataset, trained, 
     np.testing.assert_array_equal(a, b)
 
 
-def test_wrong_history_is_refused_with_the_right_value(tiny_dataset, trained, tmp_path, capsys):
+def test_a_history_shorter_than_the_models_is_refused_with_the_allowed_values(tiny_dataset, trained, tmp_path,
+                                                                               capsys):
     code = cli.main(["evaluate", "--checkpoint", str(trained), "--data", str(tiny_dataset["root"] / "sims"),
-                     "--history", "6", "--out", str(tmp_path / "m.csv")])
+                     "--history", "3", "--out", str(tmp_path / "m.csv")])
     assert code == 1
-    assert "trained with a history of K = 4 frames; --history 6 does not match" in capsys.readouterr().err
+    assert "reads a history of K = 4 frames; --history 3 gives fewer (allowed: 4 or more)" in capsys.readouterr().err
     assert not (tmp_path / "m.csv").exists()
+
+
+def test_a_longer_protocol_scores_the_frames_after_it(tiny_dataset, trained, tmp_path, capsys):
+    """--history 6 on a K = 4 model: 6 frames given, the rest predicted and scored (both methods)."""
+    data = str(tiny_dataset["root"] / "sims")
+    assert cli.main(["evaluate", "--checkpoint", str(trained), "--data", data, "--history", "6",
+                     "--out", str(tmp_path / "m.csv"), "--per-step", str(tmp_path / "s.csv")]) == 0
+    steps = pd.read_csv(tmp_path / "s.csv")
+    mse = steps[(steps["metric"] == "rollout MSE") & (steps["sim"] != "all")]
+    assert mse["frame"].min() == 6 and set(mse["history"]) == {6}
+    n_frames = h5md.read(next(iter(sorted((tiny_dataset["root"] / "sims").glob("*.h5"))))).position.shape[0]
+    assert (mse.groupby(["method", "sim"])["frame"].count() == n_frames - 6).all()
 
 
 def test_a_rollout_that_blows_up_midway_counts_and_is_named():

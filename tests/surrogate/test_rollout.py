@@ -31,6 +31,21 @@ def test_rollout_keeps_kinematic_particles_exactly_on_the_data(tiny_dataset):
     assert not np.allclose(result.position[4:, ~kin], sim.position.numpy()[4:, ~kin])   # the rest is predicted
 
 
+def test_rollout_given_more_frames_than_the_model_reads_starts_after_them(tiny_dataset):
+    """G = K + 2 frames given: they are the data's, and frame G is predicted from frames G-K .. G-1."""
+    simulator, sim = simulator_and_sim(tiny_dataset)
+    k = simulator.history
+    result = rollout.rollout(simulator, sim, given=k + 2)
+    data = sim.position.numpy()
+    assert result.history == k + 2 and result.n_predicted == sim.n_frames - k - 2
+    np.testing.assert_array_equal(result.position[:k + 2], data[:k + 2])
+    forced = rollout.rollout(simulator, sim, forced=True)      # every frame from the data's window
+    np.testing.assert_allclose(result.position[k + 2], forced.position[k + 2], rtol=0, atol=1e-5)
+    assert not np.allclose(result.position[k + 2:, ~sim.kinematic.numpy()], data[k + 2:, ~sim.kinematic.numpy()])
+    with pytest.raises(ValueError, match=f"the model reads K = {k} frames; a rollout given {k - 1} cannot start"):
+        rollout.rollout(simulator, sim, given=k - 1)
+
+
 def test_rollout_beyond_the_recorded_window_holds_kinematic_particles(tiny_dataset):
     simulator, sim = simulator_and_sim(tiny_dataset)
     result = rollout.rollout(simulator, sim, n_frames=sim.n_frames + 5)

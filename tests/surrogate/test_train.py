@@ -132,6 +132,44 @@ def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
                                train.batch_loss(simulator, [sim], first, 0.0, torch.Generator()))
 
 
+def test_multi_step_pushforward_feeds_m_predicted_frames(tiny_dataset):
+    """With pushforward_steps = 2 a pushed sample's history ends in 1 or 2 of the model's own frames
+    (each drawn over seeds), each predicted from the window before it; where only one frame precedes
+    the window, m is capped at 1."""
+    from surrogate.simulator import LearnedSimulator, build_graph
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    split = tiny_dataset["split_table"]
+    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    k = simulator.history
+
+    def pushed_loss(t, m):
+        window = sim.position[t - k + 1 - m:t + 1 - m]
+        with torch.no_grad():
+            for j in range(m):
+                nxt = simulator.step(build_graph(window, sim.types, sim.kinematic, simulator.radius),
+                                     sim.position[t + 1 - m + j])
+                window = torch.cat([window[1:], nxt.unsqueeze(0)])
+        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
+        return ((simulator(graph) - simulator.target(window, sim.position[t + 1])) ** 2)[~sim.kinematic].mean()
+
+    t = k + 1
+    one, two = pushed_loss(t, 1), pushed_loss(t, 2)
+    assert not torch.isclose(one, two)
+    seen = set()
+    for seed in range(12):
+        got = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(seed),
+                               pushforward=1.0, pushforward_steps=2)
+        matches = [m for m, ref in ((1, one), (2, two)) if torch.allclose(got, ref)]
+        assert len(matches) == 1
+        seen.add(matches[0])
+    assert seen == {1, 2}
+    capped = train.batch_loss(simulator, [sim], [(0, k)], 0.0, torch.Generator().manual_seed(0),
+                              pushforward=1.0, pushforward_steps=5)
+    torch.testing.assert_close(capped, pushed_loss(k, 1))
+
+
 def test_weight_average_follows_the_ema_formula():
     model = torch.nn.Linear(2, 1)
     average = {k: v.clone() for k, v in model.state_dict().items()}

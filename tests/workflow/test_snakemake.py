@@ -172,9 +172,10 @@ def test_a_benchmark_without_solidgn_root_says_what_to_set(tmp_path):
     assert not (tmp_path / "results").exists()
 
 
-def test_a_benchmark_history_is_set_by_its_protocols(tmp_path):
+def test_a_protocol_shorter_than_the_models_history_is_refused(tmp_path):
     proc = snakemake(tmp_path, BENCH, "-n", config=("slide_small={model: {history: 3}}",))
-    assert proc.returncode != 0 and "'slide_small.model.history' is not allowed" in proc.stdout + proc.stderr
+    assert proc.returncode != 0 and "config key 'slide_small.protocols' = [2, 6]" in proc.stdout + proc.stderr
+    assert not (tmp_path / "results").exists()
 
 
 @pytest.mark.skipif(not SOLIDGN.is_dir(), reason="the Solid-GN data is not beside this checkout")
@@ -190,15 +191,17 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert set(table["split"]) == {"valid"} and table["split_note"].str.contains("no test split").all()
     frames = mse.set_index(["method", "history"])["n_frames"]
     assert frames[("constant_velocity", 2)] == 3 * 18 and frames[("constant_velocity", 6)] == 3 * 14
-    best = res / "k2" / "model" / "best.pt"
+    best = res / "model" / "best.pt"                  # one model serves both protocols
     meta = __import__("surrogate.checkpoint", fromlist=["load"]).load(best)["json"]
     assert meta["model"]["history"] == 2 and meta["model"]["properties"] == ["radius"]
     assert meta["stats"]["n_train_sims"] == 6
+    assert set(table["checkpoint_sha"]) == {__import__("surrogate.checkpoint", fromlist=["digest"]).digest(best)}
+    assert (res / "benchmarks" / "train.tsv").is_file() and (res / "logs" / "train.log").is_file()
     steps = pd.read_csv(res / "metrics_per_step.csv")
     assert set(steps["history"]) == {2, 6}
     for k in (2, 6):
         assert (res / f"k{k}" / "plots" / "rollout.gif").is_file()
-        assert (res / "benchmarks" / f"train_k{k}.tsv").is_file() and (res / "logs" / f"train_k{k}.log").is_file()
+        assert (res / "benchmarks" / f"evaluate_k{k}.tsv").is_file()
 
 
 @pytest.fixture(scope="module")

@@ -156,8 +156,7 @@ def benchmark_radius(wildcards) -> float:
 
 
 def benchmark_model_json(wildcards) -> str:
-    """The benchmark's model config with the protocol's history length K."""
-    return _json({**CFG[wildcards.bench]["model"], "history": int(wildcards.k)})
+    return _json(CFG[wildcards.bench]["model"])
 
 
 def benchmark_train_json(wildcards) -> str:

@@ -24,11 +24,12 @@ rule evaluate:
         "--plots results/{wildcards.scene}/plots {params.body} --no-progress > {log} 2>&1"
 
 
-# A public benchmark, one protocol: roll out every sim of the evaluation split (test, or valid where
-# the source has none, which every output then says) and score Graph-DEM beside constant velocity.
+# A public benchmark, one protocol (K frames given): roll out every sim of the evaluation split (test,
+# or valid where the source has none, which every output then says) and score Graph-DEM beside
+# constant velocity. The one model of the benchmark serves every protocol of K >= its history.
 rule evaluate_benchmark:
     input:
-        checkpoint="results/{bench}/k{k}/model/best.pt",
+        checkpoint="results/{bench}/model/best.pt",
         splits="results/{bench}/dataset/splits.csv",
     output:
         metrics="results/{bench}/k{k}/metrics.csv",

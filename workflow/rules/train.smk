@@ -22,25 +22,25 @@ rule train:
         "--train-json {params.train:q} --out-dir results/{wildcards.scene}/model --threads {threads} > {log} 2>&1"
 
 
-# A public benchmark trains one model per protocol (history length K) in results/{bench}/k{K}/model.
-# One thread each: graphs of ~100 particles gain little from a second core, so under -c2 the two
-# protocols train side by side.
+# A public benchmark trains one model (history length `B.model.history`), scored under every protocol.
+# One thread: graphs of ~100 particles gain little from a second core, so under -c2 the two
+# benchmarks train side by side.
 rule train_benchmark:
     input:
         stats="results/{bench}/dataset/stats.json",
         splits="results/{bench}/dataset/splits.csv",
     output:
-        best="results/{bench}/k{k}/model/best.pt",
-        history="results/{bench}/k{k}/model/history.csv",
+        best="results/{bench}/model/best.pt",
+        history="results/{bench}/model/history.csv",
     params:
         model=benchmark_model_json,
         train=benchmark_train_json,
     threads: 1
     log:
-        "results/{bench}/logs/train_k{k}.log",
+        "results/{bench}/logs/train.log",
     benchmark:
-        "results/{bench}/benchmarks/train_k{k}.tsv"
+        "results/{bench}/benchmarks/train.tsv"
     shell:
         "graphdem train --stats {input.stats} --splits {input.splits} --model-json {params.model:q} "
-        "--train-json {params.train:q} --out-dir results/{wildcards.bench}/k{wildcards.k}/model "
+        "--train-json {params.train:q} --out-dir results/{wildcards.bench}/model "
         "--threads {threads} --no-progress > {log} 2>&1"
