@@ -156,6 +156,7 @@ def benchmark_radius(wildcards) -> float:
 
 
 def benchmark_model_json(wildcards) -> str:
+    """The benchmark's model config: one model, scored under every protocol K >= its history."""
     return _json(CFG[wildcards.bench]["model"])
 
 
