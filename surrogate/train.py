@@ -90,6 +90,7 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     n = len(batch)
     flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
     pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
+    # m is drawn only for multi-step pushforward, so one-step runs keep their random stream unchanged
     steps = (torch.randint(1, pushforward_steps + 1, (n,), generator=generator) if pushforward_steps > 1
              else torch.ones(n, dtype=torch.long))
     windows, followings, sample_sims, truths = [], [], [], []

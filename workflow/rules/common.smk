@@ -86,8 +86,13 @@ def all_sims(wildcards) -> list[str]:
     return [f"results/{wildcards.scene}/sims/{i}.h5" for i in sim_ids(wildcards.scene)]
 
 
+def _section(wildcards) -> dict:
+    """The config section of a job's scene or public benchmark (wildcard `scene` or `bench`)."""
+    return CFG[getattr(wildcards, "scene", None) or wildcards.bench]
+
+
 def connectivity_radius(wildcards) -> float:
-    return CFG[wildcards.scene]["connectivity_radius"]
+    return _section(wildcards)["connectivity_radius"]
 
 
 def test_ids(scene: str) -> list[str]:
@@ -104,17 +109,17 @@ def test_rollouts(wildcards) -> list[str]:
 
 
 def model_config_json(wildcards) -> str:
-    return _json(CFG[wildcards.scene]["model"])
+    """The model config (a benchmark's one model is scored under every protocol K >= its history)."""
+    return _json(_section(wildcards)["model"])
 
 
 def train_config_json(wildcards) -> str:
-    return _json(CFG[wildcards.scene]["train"])
+    return _json(_section(wildcards)["train"])
 
 
 def runtime_json(wildcards) -> str:
     """The runtime switches of a scene or benchmark (surrogate/runtime.py)."""
-    name = getattr(wildcards, "scene", None) or wildcards.bench
-    return _json(CFG[name]["runtime"])
+    return _json(_section(wildcards)["runtime"])
 
 
 def body_displacement_arg(wildcards) -> str:
@@ -149,19 +154,6 @@ def solidgn_source(wildcards, input) -> str:
 def solidgn_limits(wildcards) -> str:
     sims = CFG[wildcards.bench]["sims"]
     return " ".join(f"--limit {split}={n}" for split, n in sims.items() if n is not None)
-
-
-def benchmark_radius(wildcards) -> float:
-    return CFG[wildcards.bench]["connectivity_radius"]
-
-
-def benchmark_model_json(wildcards) -> str:
-    """The benchmark's model config: one model, scored under every protocol K >= its history."""
-    return _json(CFG[wildcards.bench]["model"])
-
-
-def benchmark_train_json(wildcards) -> str:
-    return _json(CFG[wildcards.bench]["train"])
 
 
 def benchmark_split(wildcards) -> str:

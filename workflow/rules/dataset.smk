@@ -28,7 +28,7 @@ rule dataset_benchmark:
         stats="results/{bench}/dataset/stats.json",
         plot=report("results/{bench}/plots/dataset_sample.png", caption="../report/dataset.rst", category="dataset"),
     params:
-        radius=benchmark_radius,
+        radius=connectivity_radius,
     log:
         "results/{bench}/logs/dataset.log",
     benchmark:

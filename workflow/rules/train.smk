@@ -33,8 +33,8 @@ rule train_benchmark:
         best="results/{bench}/model/best.pt",
         history="results/{bench}/model/history.csv",
     params:
-        model=benchmark_model_json,
-        train=benchmark_train_json,
+        model=model_config_json,
+        train=train_config_json,
     threads: 1
     log:
         "results/{bench}/logs/train.log",
