@@ -5,20 +5,18 @@
 #   snakemake -c2 results/slide/metrics.csv --config slide='{young: 5.0e9}'
 #   snakemake -c2 --forcerun train results/slide/metrics.csv       # rerun one stage
 #   snakemake -c2 results/slide/dataset/stats.json                 # stop after a stage
-#   snakemake -c2 results/slide/benchmark.csv                      # run time against error
+#   snakemake -c2 results/collapse/metrics.csv                     # the granular column collapse
+#   snakemake -c2 results/slide/performance.csv                    # run time against error
 #   snakemake -c2 results/slide/stability.csv                      # stress tests (docs/performance.md)
 #   snakemake -c2 results/slide_samer/metrics.csv --config solidgn_root=/path/to/solidgn   # Table 6
 #
-# The configuration is validated against workflow/schemas/config.schema.yaml before anything runs.
-
-import os
+# Defaults are package data: generators/defaults/default.yaml and, per scene, generators/scenes/<scene>.yaml
+# (with its scale presets). --config and --configfile override them; the result is validated against
+# generators/defaults/schema.yaml and the scenes' schema fragments before anything runs.
 
 from snakemake.utils import min_version
 
 min_version("9.0")
-
-
-configfile: os.path.join(workflow.basedir, "workflow", "config", "default.yaml")
 
 
 include: "workflow/rules/common.smk"
@@ -32,7 +30,7 @@ include: "workflow/rules/train.smk"
 include: "workflow/rules/rollout.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/stability.smk"
-include: "workflow/rules/benchmark.smk"
+include: "workflow/rules/performance.smk"
 
 
 rule all:

@@ -1,23 +1,27 @@
 """Load, fill and validate the pipeline configuration.
 
-The validated config is the single source of defaults: ``workflow/config/default.yaml`` holds
-every physical default and, under ``scales``, the sizes of each scale preset. A preset only fills
-keys the user left unset, so command-line overrides always win.
+The validated config is the single source of defaults. It is package data, found without any path
+outside the package: ``generators/defaults/default.yaml`` (top-level keys, public benchmarks) and
+``generators/scenes/<scene>.yaml`` (one section per registered scene), validated against
+``generators/defaults/schema.yaml`` with each scene's fragment ``generators/scenes/<scene>.schema.yaml``.
+Every section carries its scale presets under ``scales``; the chosen preset only fills keys the user
+left unset (command-line overrides always win) and ``scales`` is removed before validation.
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import re
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import jsonschema
 import yaml
 
-ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_CONFIG = ROOT / "workflow" / "config" / "default.yaml"
-SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+DEFAULTS = resources.files("generators").joinpath("defaults")
+SCENES_DIR = resources.files("generators").joinpath("scenes")
 
 
 class ConfigError(ValueError):
@@ -47,16 +51,22 @@ def fill_missing(config: dict, preset: dict) -> dict:
 
 
 def _flatten(node: dict, root: dict) -> dict:
-    """``node`` with ``$ref`` resolved and the members of an ``allOf`` merged into one schema."""
+    """``node`` with ``$ref`` resolved and the members of an ``allOf`` merged into it (properties and
+    required lists united, the node's own keys first)."""
     while "$ref" in node:
         node = _resolve(node["$ref"], root)
-    if "allOf" in node:
-        merged: dict = {}
-        for member in node["allOf"]:
-            for key, value in _flatten(member, root).items():
-                merged[key] = merged.get(key, []) + value if key == "required" else value
-        node = merged
-    return node
+    if "allOf" not in node:
+        return node
+    merged = {k: v for k, v in node.items() if k != "allOf"}
+    for member in node["allOf"]:
+        for key, value in _flatten(member, root).items():
+            if key == "required":
+                merged[key] = merged.get(key, []) + value
+            elif key == "properties":
+                merged[key] = {**value, **merged.get(key, {})}
+            else:
+                merged.setdefault(key, value)
+    return merged
 
 
 def _schema_at(schema: dict, path: list[Any], root: dict) -> dict:
@@ -80,7 +90,7 @@ def _resolve(ref: str, root: dict) -> dict:
 def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
     path = list(error.absolute_path)
     where = ".".join(str(p) for p in path) or "<top level>"
-    if error.validator == "additionalProperties":
+    if error.validator in ("additionalProperties", "unevaluatedProperties"):
         allowed = sorted(_schema_at(schema, path, schema).get("properties", {}))
         extra = sorted(set(error.instance) - set(allowed))
         return (
@@ -101,51 +111,68 @@ def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
     return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
 
 
-SCENES = ("slide", "meteorite", "shear")
 BENCHMARKS = ("slide_samer", "slide_small")
+
+
+def _yaml(node) -> Any:
+    return yaml.safe_load(node.read_text())
+
+
+@functools.cache
+def _defaults() -> dict:
+    from generators import scenes
+    config = _yaml(DEFAULTS.joinpath("default.yaml"))
+    for name in scenes.names():
+        config[name] = _yaml(SCENES_DIR.joinpath(f"{name}.yaml"))
+    return config
+
+
+@functools.cache
+def schema() -> dict:
+    """The root schema with every registered scene's fragment under ``properties.<scene>``."""
+    from generators import scenes
+    root = _yaml(DEFAULTS.joinpath("schema.yaml"))
+    for name in scenes.names():
+        root["properties"][name] = _yaml(SCENES_DIR.joinpath(f"{name}.schema.yaml"))
+        root["required"].append(name)
+    return root
+
+
+def defaults() -> dict:
+    """The embedded default config (every section with its scale presets), a fresh copy."""
+    return copy.deepcopy(_defaults())
 
 
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
-    schema = yaml.safe_load(SCHEMA.read_text())
-    validator = jsonschema.Draft202012Validator(schema)
+    root = schema()
+    validator = jsonschema.Draft202012Validator(root)
     errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))
     if errors:
-        raise ConfigError("invalid configuration:\n  " + "\n  ".join(
-            _describe(e, schema) for e in errors))
+        raise ConfigError("invalid configuration:\n  " + "\n  ".join(_describe(e, root) for e in errors))
     _check_semantics(config)
     return config
 
 
 def _check_semantics(config: dict) -> None:
-    for scene in SCENES:
-        cfg = config.get(scene)
-        if not cfg:
-            continue
+    from generators import scenes
+    for name, scene in scenes.registry().items():
+        cfg = config[name]
         lo, hi = cfg["radius"]
         if lo > hi:
-            raise ConfigError(f"config key '{scene}.radius' = {cfg['radius']} must be [min, max] with min <= max")
+            raise ConfigError(f"config key '{name}.radius' = {cfg['radius']} must be [min, max] with min <= max")
         if abs(sum(cfg["split"]) - 1.0) > 1e-6:
-            raise ConfigError(f"config key '{scene}.split' = {cfg['split']} must sum to 1")
-        for key, rng in cfg["sweep"].items():
-            if isinstance(rng, list) and len(rng) == 2 and key != "displacements" and rng[0] > rng[1]:
-                raise ConfigError(f"config key '{scene}.sweep.{key}' = {rng} must be [min, max] with min <= max")
+            raise ConfigError(f"config key '{name}.split' = {cfg['split']} must sum to 1")
+        if cfg["engine"] not in scene.engines:
+            raise ConfigError(f"config key '{name}.engine' = {cfg['engine']!r}: the {name} scene runs in "
+                              f"{', '.join(scene.engines)} for now")
+        scene.check(cfg)
     for name in BENCHMARKS:
-        bench = config.get(name)
-        if bench and min(bench["protocols"]) < bench["model"]["history"]:
+        bench = config[name]
+        if min(bench["protocols"]) < bench["model"]["history"]:
             raise ConfigError(f"config key '{name}.protocols' = {bench['protocols']}: a protocol gives K frames and "
                               f"the model reads the last '{name}.model.history' = {bench['model']['history']} of "
                               f"them, so every K must be at least that")
-    meteorite = config.get("meteorite")
-    if meteorite and meteorite["contact_frame"] >= meteorite["model"]["history"]:
-        raise ConfigError(f"config key 'meteorite.contact_frame' = {meteorite['contact_frame']} must be below "
-                          f"'meteorite.model.history' = {meteorite['model']['history']}: the impact point x0 is taken "
-                          "at first contact, which must lie in the history both truth and prediction share")
-    shear = config.get("shear")
-    if shear and shear["wall_radius"] * (shear["wall_spacing"] / 2**0.5 - 1.0) >= shear["radius"][0]:
-        raise ConfigError(f"config keys 'shear.wall_radius' = {shear['wall_radius']} and 'shear.wall_spacing' = "
-                          f"{shear['wall_spacing']} leave holes in the box walls wider than the smallest soil sphere "
-                          f"({shear['radius'][0]} m): lower the spacing or raise the wall radius")
 
 
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
@@ -168,17 +195,26 @@ def coerce_numbers(value: Any) -> Any:
 
 
 def resolve(config: dict) -> dict:
-    """Fill the chosen scale preset into ``config`` (user keys win) and validate the result."""
+    """Fill the chosen scale preset of every section into ``config`` (user keys win), drop the presets,
+    and validate the result."""
     config = coerce_numbers(config)
     scale = config.get("scale", "default")
-    presets = config.get("scales", {})
-    if scale not in presets:
-        raise ConfigError(f"config key 'scale' = {scale!r} is not allowed; allowed: {sorted(presets)}")
-    filled = fill_missing(config, presets[scale])
+    if scale not in ("ci", "default", "paper"):
+        raise ConfigError(f"config key 'scale' = {scale!r} is not allowed; allowed: ['ci', 'default', 'paper']")
+    filled = {}
+    for key, value in config.items():
+        if isinstance(value, dict) and "scales" in value:
+            presets = value["scales"]
+            if not isinstance(presets, dict) or scale not in presets:
+                raise ConfigError(f"config key '{key}.scales' has no preset {scale!r}; presets: "
+                                  f"{sorted(presets) if isinstance(presets, dict) else presets}")
+            value = fill_missing({k: v for k, v in value.items() if k != "scales"}, presets[scale])
+        filled[key] = value
     return validate(filled)
 
 
-def load(overrides: dict | None = None, path: Path = DEFAULT_CONFIG) -> dict:
-    """The embedded default config with ``overrides`` merged in, resolved and validated."""
-    base = yaml.safe_load(Path(path).read_text())
+def load(overrides: dict | None = None, path: Path | None = None) -> dict:
+    """The embedded default config (or the YAML file ``path``) with ``overrides`` merged in, resolved
+    and validated."""
+    base = defaults() if path is None else yaml.safe_load(Path(path).read_text())
     return resolve(deep_update(base, overrides or {}))

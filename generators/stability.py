@@ -1,69 +1,48 @@
-"""Blow-up detection for DEM trajectories: non-finite values, escapes, excessive overlaps, and
-mechanical energy that grows although nothing supplies it."""
+"""The stability stage's DEM test: one sim of the sweep at time steps that are multiples of the
+stable limit.
+
+Each run goes through the same ``simulate`` as the dataset (and so through every blow-up
+detector of :mod:`generators.blowup`); a run that blows up must name the sim, the frame and
+the cause, and leave nothing behind. The raw output of the runs is scratch: only the report is
+kept.
+"""
 
 from __future__ import annotations
 
+import shutil
+import time
+from pathlib import Path
+
 import numpy as np
-from scipy.spatial import cKDTree
+import pandas as pd
+
+from generators import blowup, convert, engine, scenes
 
 
-class BlowUp(RuntimeError):
-    """A simulation became unstable; names the sim, the frame and the cause."""
-
-    def __init__(self, sim: str, frame: int, cause: str):
-        self.sim, self.frame, self.cause = sim, frame, cause
-        super().__init__(f"simulation {sim} blew up at frame {frame}: {cause}")
-
-
-def max_overlap_fraction(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) -> float:
-    """Largest overlap r_i + r_j - |x_i - x_j| over pairs, divided by the smaller radius.
-
-    Pairs of two kinematic particles are ignored (their overlap is part of the geometry).
-    """
-    tree = cKDTree(x)
-    pairs = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray")
-    if len(pairs) == 0:
-        return 0.0
-    i, j = pairs[:, 0], pairs[:, 1]
-    keep = ~(kinematic[i] & kinematic[j])
-    i, j = i[keep], j[keep]
-    if len(i) == 0:
-        return 0.0
-    overlap = radius[i] + radius[j] - np.linalg.norm(x[i] - x[j], axis=1)
-    return float(np.max(overlap / np.minimum(radius[i], radius[j])))
-
-
-def check_trajectory(sim: str, position: np.ndarray, radius: np.ndarray, kinematic: np.ndarray,
-                     lower: np.ndarray, upper: np.ndarray, max_overlap: float) -> None:
-    """Raise BlowUp at the first frame with a non-finite value, an escape or a large overlap."""
-    radius = np.asarray(radius, float)
-    kinematic = np.asarray(kinematic, bool)
-    for frame, x in enumerate(np.asarray(position, float)):
-        if not np.all(np.isfinite(x)):
-            bad = int(np.argwhere(~np.isfinite(x))[0, 0])
-            raise BlowUp(sim, frame, f"non-finite position of particle {bad}")
-        outside = np.any((x < lower) | (x > upper), axis=1)
-        if outside.any():
-            p = int(np.argmax(outside))
-            raise BlowUp(sim, frame, f"particle {p} left the domain {list(lower)}-{list(upper)} "
-                                     f"(at {np.round(x[p], 3).tolist()})")
-        frac = max_overlap_fraction(x, radius, kinematic)
-        if frac > max_overlap:
-            raise BlowUp(sim, frame, f"overlap of {frac:.3f} radii exceeds the limit {max_overlap}")
-
-
-def check_energy(sim: str, kinetic: np.ndarray, potential: np.ndarray, scale: float, max_gain: float) -> None:
-    """Raise BlowUp at the first frame whose mechanical energy (kinetic + gravitational) exceeds the
-    first frame's by more than ``max_gain * scale``.
-
-    A granular flow under gravity only dissipates: its kinetic plus potential energy never grows
-    (the elastic energy of the contacts is a small fraction of ``scale``). Growth means the
-    integrator is injecting energy: the hallmark of a time step above the stable limit.
-    """
-    energy = np.asarray(kinetic, float) + np.asarray(potential, float)
-    gain = (energy - energy[0]) / scale
-    bad = np.flatnonzero(~np.isfinite(gain) | (gain > max_gain))
-    if len(bad):
-        f = int(bad[0])
-        raise BlowUp(sim, f, f"mechanical energy grew by {gain[f]:.3g} x the reference energy {scale:.4g} J "
-                             f"since frame 0 with no energy source (limit {max_gain})")
+def dem_time_steps(scene_name: str, row: dict, packing: Path, factors: list[float], scratch: Path) -> pd.DataFrame:
+    """One report row per factor f: the sim run with dt = f x stable limit (``dt_safety = f``, no
+    refusal: finding the unstable steps is the point), stable or blown up, with frame and cause."""
+    scene = scenes.get(scene_name)
+    scratch = Path(scratch)
+    rows = []
+    for factor in factors:
+        out = scratch / f"dt_x{factor:g}"
+        start = time.perf_counter()
+        record = {"test": "dem_time_step", "sim": row["id"], "setting": f"dt = {factor:g} x stable limit",
+                  "factor": float(factor)}
+        try:
+            rec = engine.simulate(scene, {**row, "dt": None, "dt_safety": float(factor)}, packing, out)
+            traj = convert.trajectory(out)
+            kinematic = np.asarray(traj.kinematic, bool)
+            record.update(stable=True, frame=np.nan, cause="", dt=rec.dt, dt_limit=rec.dt_limit,
+                          steps_per_frame=rec.steps_per_frame,
+                          max_overlap=max(blowup.max_overlap_fraction(np.asarray(x, float), traj.radius, kinematic)
+                                          for x in traj.position))
+        except blowup.BlowUp as exc:
+            record.update(stable=False, frame=exc.frame, cause=exc.cause)
+        record["wall_seconds"] = time.perf_counter() - start
+        # a failed run must leave no folder and no temporary (atomic_path's ".<name>.tmp-<pid>...")
+        record["left_behind"] = int(out.exists() and not record["stable"]) + sum(1 for _ in scratch.glob(".*tmp-*"))
+        rows.append(record)
+        shutil.rmtree(out, ignore_errors=True)
+    return pd.DataFrame(rows)

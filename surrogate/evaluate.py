@@ -20,7 +20,7 @@ from generators import h5md
 from generators.atomic import atomic_path
 from surrogate import checkpoint
 from surrogate.baseline import constant_velocity
-from surrogate.metrics import SCENES, accuracy
+from surrogate.metrics import accuracy, of_scene
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.runtime import Runtime
 from surrogate.runtime import apply as apply_runtime
@@ -119,7 +119,8 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
     (method name -> [T, N, D]) over the frames after the first ``history``."""
     scene = str(traj.parameters.get("scene", "unknown"))
     moving = ~np.asarray(traj.kinematic, bool)
-    metrics = SCENES[scene].for_trajectory(traj, body_displacement) if scene in SCENES else None
+    cls = of_scene(scene)
+    metrics = cls.for_trajectory(traj, body_displacement) if cls is not None else None
     truth_values = metrics(truth) if metrics else {}
     rows = []
     for method, prediction in predictions.items():
@@ -238,7 +239,7 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
 
 def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
     """Per method, metric and tau: truth and prediction averaged over sims (``sim = all`` rows)."""
-    keys = ["scene", "method", "metric", "tau", "frame"]
+    keys = ["scene", "method", "metric", "tau", "frame"] + (["history"] if "history" in steps.columns else [])
     grouped = steps.groupby(keys, sort=False)
     mean = grouped[["time", "truth"]].mean().reset_index()                   # truth NaN: no body, skipped
     mean["prediction"] = grouped["prediction"].mean(skipna=False).to_numpy()  # a blow-up stays visible

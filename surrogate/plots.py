@@ -13,16 +13,13 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from generators.atomic import atomic_path  # noqa: E402
+from surrogate.metrics import units  # noqa: E402
 from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plane_section  # noqa: E402,F401
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
          "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity")}
-UNITS = {"Slide Num": "particles", "Max Ht": "m", "Mean Ht": "m", "Tongue Dis": "m", "Dis": "m", "Dis mean": "m",
-         "rollout MSE": "m$^2$", "Mean x": "m", "Imp Dep": "m", "Cra Dep": "m", "Imp R(L)": "m", "Imp R(R)": "m",
-         "Sp Num(L)": "particles", "Sp Num(R)": "particles", "Max Ht(L)": "m", "Max Ht(R)": "m", "Mean Ht(L)": "m",
-         "Mean Ht(R)": "m", **{f"{s} {k}": "m" for s in ("Above", "Below", "Failure Surface", "All")
-                               for k in ("sum", "mean")}}
+
 
 
 def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str = "time") -> Path:
@@ -31,6 +28,9 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
     if x not in ("time", "tau"):
         raise ValueError(f"x must be 'time' or 'tau', got {x!r}")
     mean = per_step[per_step["sim"] == "all"]
+    several = "history" in mean.columns and mean["history"].nunique() > 1      # one panel per protocol and metric
+    if several:
+        mean = mean.assign(metric=[f"K = {k}: {m}" for k, m in zip(mean["history"], mean["metric"], strict=True)])
     metrics = list(dict.fromkeys(mean["metric"]))
     cols = min(3, len(metrics))
     rows = int(np.ceil(len(metrics) / cols))
@@ -45,7 +45,7 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
             ax.plot(group[x], group["prediction"], **STYLE.get(method, dict(label=method)))
         ax.set_title(metric)
         ax.set_xlabel("time (s)" if x == "time" else "predicted frame")
-        ax.set_ylabel(UNITS.get(metric, ""))
+        ax.set_ylabel(units().get(metric.split(": ")[-1], ""))
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(metrics):]:
         ax.set_visible(False)

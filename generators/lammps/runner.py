@@ -1,4 +1,4 @@
-"""Run the LAMMPS executable on an input template with `-var` parameters."""
+"""Run the LAMMPS executable on an input deck (generators/lammps/deck.py), single-threaded."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import subprocess
 import tempfile
 import time
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 from generators.lammps import io
@@ -43,18 +42,11 @@ def executable() -> str:
     return path
 
 
-def template(name: str) -> str:
-    return resources.files("generators.lammps").joinpath("templates", name).read_text()
-
-
-def run(template_name: str, variables: dict[str, object], workdir: Path,
-        log_name: str = "log.lammps") -> Run:
-    """Copy the template into ``workdir`` as in.lammps and run it there, single-threaded."""
+def run(text: str, workdir: Path, log_name: str = "log.lammps") -> Run:
+    """Write ``text`` into ``workdir`` as in.lammps and run it there, single-threaded."""
     workdir = Path(workdir)
-    (workdir / "in.lammps").write_text(template(template_name))
+    (workdir / "in.lammps").write_text(text)
     cmd = [executable(), "-in", "in.lammps", "-log", log_name, "-screen", "none", "-nocite"]
-    for key, value in variables.items():
-        cmd += ["-var", key, f"{value:.12g}" if isinstance(value, float) else str(value)]
     env = dict(os.environ, OMP_NUM_THREADS="1")
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         start = time.perf_counter()

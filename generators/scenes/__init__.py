@@ -1,36 +1,40 @@
-"""Scene definitions (engine-agnostic) and the engine driver that runs each scene."""
+"""The scene registry: every module of this package that defines ``SCENE`` (a generators.scene.Scene).
+
+Adding a scene means adding ``<name>.py`` (its Scene), ``<name>.yaml`` (its config section with its
+scale presets) and ``<name>.schema.yaml`` (its schema fragment) here; every stage iterates
+:func:`registry`.
+"""
 
 from __future__ import annotations
 
+import functools
 import importlib
-from types import ModuleType
+import pkgutil
 
-# scene -> (scene definition module, engine driver module with settle() and simulate())
-DRIVERS = {
-    "slide": ("generators.scenes.slide", "generators.lammps.slide"),
-    "meteorite": ("generators.scenes.meteorite", "generators.lammps.meteorite"),
-    "shear": ("generators.scenes.shear", "generators.yade.shear"),
-}
+from generators.scene import Scene
 
 
-def _check(scene: str) -> None:
-    if scene not in DRIVERS:
-        raise ValueError(f"unknown scene {scene!r}; known: {', '.join(DRIVERS)}")
+@functools.cache
+def registry() -> dict[str, Scene]:
+    """name -> Scene of every scene module, sorted by name."""
+    found = {}
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        scene = getattr(module, "SCENE", None)
+        if isinstance(scene, Scene):
+            if scene.name != info.name:
+                raise ValueError(f"generators/scenes/{info.name}.py defines a scene named {scene.name!r}; "
+                                 "a scene's module is named after it")
+            found[scene.name] = scene
+    return found
 
 
-def definition(scene: str) -> ModuleType:
-    _check(scene)
-    return importlib.import_module(DRIVERS[scene][0])
+def names() -> list[str]:
+    return list(registry())
 
 
-def driver(scene: str) -> ModuleType:
-    _check(scene)
-    return importlib.import_module(DRIVERS[scene][1])
-
-
-def packings(scene: str, cfg: dict) -> list[dict]:
-    """The packing parameter sets (each settled once by the prepare stage) of a scene's config."""
-    module = definition(scene)
-    if hasattr(module, "packings"):
-        return module.packings(cfg)
-    return [module.packing_params(cfg, i) for i in range(cfg["n_packings"])]
+def get(name: str) -> Scene:
+    scenes = registry()
+    if name not in scenes:
+        raise ValueError(f"unknown scene {name!r}; known: {', '.join(scenes)}")
+    return scenes[name]

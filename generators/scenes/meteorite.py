@@ -1,9 +1,10 @@
-"""The 2D meteorite impact scene (article 5.1 "Meteorite Impact"), independent of the engine.
+"""The 2D meteorite impact scene (article 5.1 "Meteorite Impact"): definition, DEM description and
+metrics (Table 2).
 
 A granular ground bed, settled once under gravity between fixed side and bottom walls (the
 prepare stage), is struck by a meteorite: a disc-shaped cluster of touching particles, so that
 it breaks into debris on impact. Species ids: 0 ground, 1 meteorite. No particle is kinematic:
-the walls are the engine's planar walls and enter the surrogate through its boundary features.
+the walls are planar walls and enter the surrogate through its boundary features.
 
 The meteorite flies in the x-y plane at ``angle`` degrees below the horizontal (90: straight
 down), moving towards +x, and its path is aimed so that it first touches the bed surface at
@@ -13,41 +14,21 @@ down), moving towards +x, and its path is aimed so that it first touches the bed
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-from generators import contact
-from generators.scenes import packing
+from generators import contact, dem
+from generators.config import ConfigError
+from generators.scene import Scene, check_range
 
 GROUND, METEORITE = 0, 1
-SPECIES_NAMES = {GROUND: "ground", METEORITE: "meteorite"}
-
-# Parameters that shape the settled bed: a change in any of them makes a new packing.
-PACKING_KEYS = (
-    "domain", "gravity", "radius", "bed_depth", "density", "young", "kt_over_kn", "restitution",
-    "friction", "rolling_friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
-    "max_overlap",
-)
+SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
 
 
-def packing_params(cfg: dict, index: int = 0) -> dict:
-    return packing.packing_params(cfg, PACKING_KEYS, index)
-
-
-def packings(cfg: dict) -> list[dict]:
-    """Every packing the scene's sweep uses: one bed, shared by every sim."""
-    return [packing_params(cfg, 0)]
-
-
-@dataclass(frozen=True)
-class Particles:
-    x: np.ndarray        # [N, 2]
-    radius: np.ndarray   # [N]
-    species: np.ndarray  # [N]
-
-
-def loose_bed(cfg: dict, seed) -> Particles:
+def loose_bed(cfg: dict, seed) -> dem.Particles:
     """Ground discs on a jittered triangular lattice filling the domain's width up to 1.3 bed depths.
 
     The lattice spacing is one maximum diameter, so nothing overlaps; settling compacts the bed to
@@ -67,7 +48,7 @@ def loose_bed(cfg: dict, seed) -> Particles:
     slack = np.maximum(spacing / 2 - radius, 0.0)
     angle = rng.uniform(0, 2 * math.pi, len(xy))
     xy += (0.9 * slack * rng.uniform(0, 1, len(xy)))[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    return Particles(xy, radius, np.full(len(xy), GROUND))
+    return dem.Particles(xy, radius, np.full(len(xy), GROUND))
 
 
 def meteorite_cluster(cfg: dict) -> tuple[np.ndarray, float]:
@@ -91,7 +72,7 @@ def meteorite_cluster(cfg: dict) -> tuple[np.ndarray, float]:
     return pts - pts.mean(axis=0), r
 
 
-def surface_height(bed: Particles, x: float, half_width: float) -> float:
+def surface_height(bed: dem.Particles, x: float, half_width: float) -> float:
     """Top of the bed (max y + r of ground particles) within ``half_width`` of ``x``."""
     near = np.abs(bed.x[:, 0] - x) <= half_width
     if not near.any():
@@ -99,7 +80,7 @@ def surface_height(bed: Particles, x: float, half_width: float) -> float:
     return float(np.max(bed.x[near, 1] + bed.radius[near]))
 
 
-def place_meteorite(row: dict, bed: Particles) -> tuple[Particles, np.ndarray]:
+def place_meteorite(row: dict, bed: dem.Particles) -> tuple[dem.Particles, np.ndarray]:
     """The bed plus the meteorite of sweep row ``row``, and the meteorite's initial velocity [2].
 
     The cluster's lowest point reaches the height of the bed's top above x = domain/2 after
@@ -121,8 +102,203 @@ def place_meteorite(row: dict, bed: Particles) -> tuple[Particles, np.ndarray]:
     if (xy[:, 1] + r > height).any() or (xy[:, 0] - r < 0).any():
         raise ValueError(f"{row.get('id', 'meteorite')}: the meteorite starts outside the domain {row['domain']} "
                          f"(centre {np.round(centre, 2).tolist()}); lower contact_frame or speed")
-    return (Particles(np.concatenate([bed.x, xy]), np.concatenate([bed.radius, np.full(len(xy), r)]),
-                      np.concatenate([bed.species, np.full(len(xy), METEORITE)])), velocity)
+    return (dem.Particles(np.concatenate([bed.x, xy]), np.concatenate([bed.radius, np.full(len(xy), r)]),
+                          np.concatenate([bed.species, np.full(len(xy), METEORITE)])), velocity)
 
 
-dem_step = contact.disc_time_step
+
+@dataclass
+class MeteoriteMetrics:
+    """Crater and splash metrics of one trajectory, computed alike for truth and prediction.
+
+    d is one mean ground-particle diameter (or ``disturbance``). Ground level y_g: the mean over
+    x-bins of width d of the highest ground-particle centre in the bin, at frame 0. Impact x0: the
+    x of the meteorite's centre of mass at the first frame where a meteorite particle touches a
+    ground particle. Disturbed: ground particles farther than d from their frame-0 position.
+    Splashed: any particle more than d above y_g (before contact that is the meteorite itself).
+    """
+
+    species: np.ndarray          # [N] int: 0 ground, 1 meteorite
+    radius: np.ndarray           # [N] m
+    mass: np.ndarray             # [N] kg
+    width: float                 # m, domain width (the x-bins span [0, width])
+    disturbance: float | None = None
+
+    names = ("Imp Dep", "Cra Dep", "Imp R(L)", "Imp R(R)", "Sp Num(L)", "Sp Num(R)",
+             "Max Ht(L)", "Max Ht(R)", "Mean Ht(L)", "Mean Ht(R)")
+    pair_names = ()
+    units = {"Imp Dep": "m", "Cra Dep": "m", "Imp R(L)": "m", "Imp R(R)": "m", "Sp Num(L)": "particles",
+             "Sp Num(R)": "particles", "Max Ht(L)": "m", "Max Ht(R)": "m", "Mean Ht(L)": "m", "Mean Ht(R)": "m"}
+
+    @classmethod
+    def for_trajectory(cls, traj, body_displacement: float | None = None) -> MeteoriteMetrics:
+        return cls(np.asarray(traj.species), np.asarray(traj.radius, float), np.asarray(traj.mass, float),
+                   float(traj.box_upper[0]), body_displacement)
+
+    @property
+    def ground(self) -> np.ndarray:
+        return np.asarray(self.species) == GROUND
+
+    @property
+    def threshold(self) -> float:
+        if self.disturbance is not None:
+            return float(self.disturbance)
+        return float(2.0 * np.mean(np.asarray(self.radius)[self.ground]))
+
+    def profile(self, position: np.ndarray) -> np.ndarray:
+        """[T, B] highest ground-particle centre per x-bin (NaN for an empty bin)."""
+        d = self.threshold
+        n_bins = int(np.ceil(self.width / d))
+        x, y = position[:, self.ground, 0], position[:, self.ground, 1]
+        bins = np.clip(np.floor(np.nan_to_num(x, nan=-1.0) / d).astype(int), -1, n_bins)
+        out = np.full((len(position), n_bins + 2), -np.inf)
+        frames = np.repeat(np.arange(len(position))[:, None], x.shape[1], axis=1)
+        np.maximum.at(out, (frames, bins + 1), np.nan_to_num(y, nan=-np.inf))
+        out = out[:, 1:-1]
+        out[~np.isfinite(out)] = np.nan
+        return out
+
+    def ground_level(self, position: np.ndarray) -> float:
+        return float(np.nanmean(self.profile(position[:1])))
+
+    def impact_x(self, position: np.ndarray) -> float:
+        """x of the meteorite's centre of mass at first contact (NaN if it never touches the ground)."""
+        met, ground = ~self.ground, self.ground
+        r_met, r_ground = self.radius[met], self.radius[ground]
+        reach = float(r_met.max() + r_ground.max())
+        for frame in position:
+            if not np.isfinite(frame).all():
+                return float("nan")
+            pairs = cKDTree(frame[met]).query_ball_tree(cKDTree(frame[ground]), reach)
+            for i, js in enumerate(pairs):
+                if js and np.any(np.linalg.norm(frame[ground][js] - frame[met][i], axis=1) < r_met[i] + r_ground[js]):
+                    return float(np.average(frame[met, 0], weights=self.mass[met]))
+        return float("nan")
+
+    def __call__(self, position: np.ndarray) -> dict[str, np.ndarray]:
+        """Per frame: every metric of ``names``; NaN where undefined (no disturbed or splashed
+        particle on that side, no contact) and on a non-finite frame."""
+        position = np.asarray(position, np.float64)
+        d = self.threshold
+        y_g = self.ground_level(position)
+        x0 = self.impact_x(position)
+        x, y = position[..., 0], position[..., 1]
+        with np.errstate(invalid="ignore"):
+            moved = np.linalg.norm(position - position[0], axis=-1)
+            disturbed = (moved > d) & self.ground[None, :]
+            splashed = y - y_g > d
+        nan = np.full(len(position), np.nan)
+
+        def reduce(mask, values, how):
+            with warnings.catch_warnings():          # all-NaN rows (nothing disturbed/splashed) give NaN
+                warnings.simplefilter("ignore", RuntimeWarning)
+                return how(np.where(mask, values, np.nan), axis=1)
+
+        depth = reduce(disturbed, y_g - y, np.nanmax)
+        # reach on each side counts only that side's disturbed particles (one at x0 counts on both with 0);
+        # a side with none is NaN, never a negative reach
+        with np.errstate(invalid="ignore"):
+            left_reach = reduce(disturbed & (x <= x0), x0 - x, np.nanmax)
+            right_reach = reduce(disturbed & (x >= x0), x - x0, np.nanmax)
+        # crater: lowest point of the surface profile between the outermost disturbed particles
+        profile = self.profile(position)
+        centres = (np.arange(profile.shape[1]) + 0.5) * d
+        lo, hi = reduce(disturbed, x, np.nanmin), reduce(disturbed, x, np.nanmax)
+        with np.errstate(invalid="ignore"):
+            zone = (centres[None, :] >= lo[:, None] - d / 2) & (centres[None, :] <= hi[:, None] + d / 2)
+        crater = y_g - reduce(zone, profile, np.nanmin)
+        out = {"Imp Dep": depth, "Cra Dep": crater, "Imp R(L)": left_reach, "Imp R(R)": right_reach}
+        height = y - y_g
+        for side, mask in (("L", splashed & (x < x0)), ("R", splashed & (x >= x0))):
+            count = mask.sum(axis=1).astype(float)
+            out[f"Sp Num({side})"] = np.where(np.isfinite(x0), count, nan)
+            out[f"Max Ht({side})"] = reduce(mask, height, np.nanmax)
+            out[f"Mean Ht({side})"] = reduce(mask, height, np.nanmean)
+        broken = ~np.isfinite(position).all(axis=(1, 2))
+        for values in out.values():
+            values[broken] = np.nan
+        return {name: out[name] for name in self.names}
+
+    def compare(self, predicted: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
+        return {}
+
+
+def _setup(p: dict, name: str, particles: dem.Particles, schedule, **extra) -> dem.Setup:
+    dt, limit, kn = contact.disc_time_step(p, where=name)
+    width, _ = p["domain"]
+    return dem.Setup(
+        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
+        kinematic_species=(), n_species=2, density=p["density"], gravity=p["gravity"],
+        contact=dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
+                            friction=p["friction"], rolling_friction=p["rolling_friction"]),
+        dt=dt, dt_limit=limit, lower=np.zeros(2), upper=np.asarray(p["domain"], float),
+        max_overlap=p["max_overlap"], schedule=schedule(dt),
+        walls=(dem.PlanarWall(0, 0.0, width), dem.PlanarWall(1, 0.0, None)), **extra)
+
+
+def _grid(lo: float, hi: float, n: int) -> list[float]:
+    return [round(float(v), 6) for v in (np.linspace(lo, hi, n) if n > 1 else [0.5 * (lo + hi)])]
+
+
+class Meteorite(Scene):
+    name = "meteorite"
+    dim = 2
+    species = {GROUND: "ground", METEORITE: "meteorite"}
+    kinematic_species = ()
+    engines = ("lammps",)
+    # Parameters that shape the settled bed: a change in any of them makes a new packing.
+    packing_keys = (
+        "domain", "gravity", "radius", "bed_depth", "density", "young", "kt_over_kn", "restitution",
+        "friction", "rolling_friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
+        "max_overlap",
+    )
+    metrics = MeteoriteMetrics
+    headline = "Cra Dep"
+
+    def packings(self, cfg: dict) -> list[dict]:
+        """One bed, shared by every sim."""
+        return [self.packing_params(cfg, 0)]
+
+    def _axes(self, cfg: dict) -> list[tuple[float, float]]:
+        sw = cfg["sweep"]
+        angles, speeds = _grid(*sw["angle"], sw["n_angles"]), _grid(*sw["speed"], sw["n_speeds"])
+        return [(a, s) for a in angles for s in speeds]
+
+    def sweep_size(self, cfg: dict) -> int:
+        return cfg["sweep"]["n_angles"] * cfg["sweep"]["n_speeds"]
+
+    def draw(self, cfg: dict, index: int, rng: np.random.Generator, packings: list[str]) -> dict:
+        """The impact angle x speed grid (article 5.1: 31 x 31 at paper scale), angle varying slowest."""
+        angle, speed = self._axes(cfg)[index]
+        return {"angle": angle, "speed": speed, "packing": packings[0]}
+
+    def settle_setup(self, params: dict) -> dem.Setup:
+        loose = loose_bed(params, seed=[params["seed"], 2000 + params["packing_index"]])
+        return _setup(params, "meteorite", loose, lambda dt: dem.Settle(
+            damping=params["settle_damping"], damping_kind="viscous", check_every=SETTLE_CHECK,
+            max_time=params["settle_time"], speed=params["settle_speed"]))
+
+    def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
+        particles, velocity = place_meteorite(row, packing)
+        initial = np.zeros_like(particles.x)
+        initial[particles.species == METEORITE] = velocity
+
+        def record(dt: float) -> dem.Record:
+            return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
+
+        return _setup(row, row["id"], particles, record, velocity=initial, max_energy_gain=row["max_energy_gain"])
+
+    def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
+        launch = setup.velocity[setup.particles.species == METEORITE][0]
+        return {"launch_velocity": [float(v) for v in launch]}
+
+    def check(self, cfg: dict) -> None:
+        for key in ("angle", "speed"):
+            check_range(self.name, f"sweep.{key}", cfg["sweep"][key])
+        if cfg["contact_frame"] >= cfg["model"]["history"]:
+            raise ConfigError(f"config key 'meteorite.contact_frame' = {cfg['contact_frame']} must be below "
+                              f"'meteorite.model.history' = {cfg['model']['history']}: the impact point x0 is taken "
+                              "at first contact, which must lie in the history both truth and prediction share")
+
+
+SCENE = Meteorite()

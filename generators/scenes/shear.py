@@ -1,10 +1,11 @@
-"""The 3D direct-shear scene (article 5.1 "Direct Shear"), independent of the engine.
+"""The 3D direct-shear scene (article 5.1 "Direct Shear"): definition, DEM description and metrics
+(Table 4, Fig. 14).
 
 A shear box (inner size ``box`` = L x W x H) split at mid-height ``z_s = H / 2``; its bottom and
 side walls are spheres ("box" particles, kinematic): the lower half, bottom plate included, moves
-along +x at constant ``shear_speed``, the upper half is held. Soil spheres fill it. The soil's
-Young's modulus is swept; it is the per-particle property ``young`` of the data (box particles
-are of the soil's material, so they carry the same value). Species ids: 0 box (kinematic), 1 soil.
+along +x at constant speed, the upper half is held. Soil spheres fill it. The soil's Young's
+modulus is swept; it is the per-particle property ``young`` of the data (box particles are of the
+soil's material, so they carry the same value). Species ids: 0 box (kinematic), 1 soil.
 
 Geometry: the box's inner faces are the planes x = 0, x = L, y = 0, y = W and z = 0; wall sphere
 centres lie one wall radius outside them on a square grid of spacing ``wall_spacing`` radii.
@@ -17,16 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from generators import contact
-from generators.scenes import packing
+from generators import contact, dem
+from generators.config import ConfigError
+from generators.scene import Scene
 
 BOX, SOIL = 0, 1
-SPECIES_NAMES = {BOX: "box", SOIL: "soil"}
+LOWER = "lower"            # the packing's group of box spheres in the moving lower half
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
-
-PACKING_KEYS = ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "kt_over_kn",
-                "restitution", "friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
-                "max_overlap")
+SETTLE_CHECK = 0.005       # s of physical time between two checks of the settling energy
 
 
 def split_height(cfg: dict) -> float:
@@ -41,37 +40,12 @@ def young_values(cfg: dict) -> list[float]:
     return [float(f"{v:.6g}") for v in values]
 
 
-def packing_params(cfg: dict, young: float) -> dict:
-    return packing.packing_params(cfg, PACKING_KEYS, young=float(young))
-
-
-def packings(cfg: dict) -> list[dict]:
-    """The one packing every sim shares: settled with the stiffest swept modulus.
-
-    Under self-weight the overlaps are below 1e-4 radii at every modulus of the sweep, so the
-    geometry barely depends on it; settling at the stiffest keeps overlaps smallest, and a softer
-    sim starts by sagging a few micrometres (never by springing apart).
-    """
-    return [packing_params(cfg, max(young_values(cfg)))]
-
-
-@dataclass(frozen=True)
-class Particles:
-    x: np.ndarray        # [N, 3]
-    radius: np.ndarray   # [N]
-    species: np.ndarray  # [N]
-    lower: np.ndarray    # [N] bool: box particle of the moving lower half
-
-    def subset(self, keep: np.ndarray) -> Particles:
-        return Particles(self.x[keep], self.radius[keep], self.species[keep], self.lower[keep])
-
-
 def _grid(a0: float, a1: float, step: float) -> np.ndarray:
     n = max(1, int(math.ceil((a1 - a0) / step)))
     return np.linspace(a0, a1, n + 1)
 
 
-def box_particles(cfg: dict, height: float) -> Particles:
+def box_particles(cfg: dict, height: float) -> dem.Particles:
     """Wall spheres of the bottom plate and the four side walls, up to ``height``."""
     length, width, _ = cfg["box"]
     rw = cfg["wall_radius"]
@@ -84,10 +58,10 @@ def box_particles(cfg: dict, height: float) -> Particles:
     for y in (-rw, width + rw):
         pts.append(np.stack(np.meshgrid(xs[1:-1], [y], zs, indexing="ij"), -1).reshape(-1, 3))
     xyz = np.concatenate(pts)
-    return Particles(xyz, np.full(len(xyz), rw), np.full(len(xyz), BOX), xyz[:, 2] < split_height(cfg))
+    return dem.Particles(xyz, np.full(len(xyz), rw), np.full(len(xyz), BOX), {LOWER: xyz[:, 2] < split_height(cfg)})
 
 
-def loose_soil(cfg: dict, seed) -> Particles:
+def loose_soil(cfg: dict, seed) -> dem.Particles:
     """Soil spheres on a jittered cubic lattice filling the box up to FILL_FACTOR box heights."""
     rng = np.random.default_rng(seed)
     r_min, r_max = cfg["radius"]
@@ -98,17 +72,16 @@ def loose_soil(cfg: dict, seed) -> Particles:
     radius = rng.uniform(r_min, r_max, len(xyz))
     slack = np.maximum(spacing / 2 - radius, 0.0)
     xyz = xyz + rng.uniform(-1, 1, xyz.shape) * (0.5 * slack)[:, None]
-    return Particles(xyz, radius, np.full(len(xyz), SOIL), np.zeros(len(xyz), bool))
+    return dem.Particles(xyz, radius, np.full(len(xyz), SOIL), {LOWER: np.zeros(len(xyz), bool)})
 
 
-def loose_packing(cfg: dict) -> Particles:
+def loose_packing(cfg: dict) -> dem.Particles:
     box = box_particles(cfg, FILL_FACTOR * cfg["box"][2])
     soil = loose_soil(cfg, [cfg["seed"], int(round(math.log10(cfg["young"]) * 1000))])
-    return Particles(np.concatenate([box.x, soil.x]), np.concatenate([box.radius, soil.radius]),
-                     np.concatenate([box.species, soil.species]), np.concatenate([box.lower, soil.lower]))
+    return box.concat(soil)
 
 
-def check_filled(settled: Particles, cfg: dict, where: str) -> None:
+def check_filled(settled: dem.Particles, cfg: dict, where: str) -> None:
     """Refuse a settled pour whose soil does not reach the box height H: trimming it would leave the box
     under-filled (and the sets above the split plane thin or empty)."""
     soil = settled.species == SOIL
@@ -119,12 +92,73 @@ def check_filled(settled: Particles, cfg: dict, where: str) -> None:
                          "settled too low: use smaller soil spheres ('shear.radius') or a lower box")
 
 
-def trim(settled: Particles, cfg: dict) -> Particles:
+def trim(settled: dem.Particles, cfg: dict) -> dem.Particles:
     """The settled packing cut to the box: soil whose top is above H and wall rows above H removed."""
     height = cfg["box"][2]
     soil = settled.species == SOIL
     keep = np.where(soil, settled.x[:, 2] + settled.radius <= height, settled.x[:, 2] <= height + 1e-9)
     return settled.subset(keep)
+
+
+def domain(cfg: dict, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds every particle must stay within: the box walls, shifted by the shear, plus a margin
+    of two wall diameters, and up to two box heights."""
+    length, width, height = cfg["box"]
+    margin = 4.0 * cfg["wall_radius"]
+    return (np.array([-margin, -margin, -margin]),
+            np.array([length + displacement + margin, width + margin, 2.0 * height]))
+
+@dataclass
+class ShearMetrics:
+    """Error sets around the failure surface (the box split plane z_s) and the mean soil x-position.
+
+    Sets are fixed by the frame-0 heights: Above z_s < z <= z_s + band, Below z_s - band <= z < z_s,
+    Failure Surface both, All every soil (moving) particle.
+    """
+
+    kinematic: np.ndarray        # [N] bool
+    height0: np.ndarray          # [N] m, z at frame 0
+    split_height: float          # m
+    band: float                  # m, half-width of the failure-surface sets (config shear.failure_band)
+
+    names = ("Mean x",)
+    sets = ("Above", "Below", "Failure Surface", "All")
+    pair_names = tuple(f"{s} {k}" for s in sets for k in ("sum", "mean"))
+    units = {"Mean x": "m", **{name: "m" for name in pair_names}}
+
+    @classmethod
+    def for_trajectory(cls, traj, body_displacement: float | None = None) -> ShearMetrics:
+        p = traj.parameters
+        missing = [k for k in ("split_height", "failure_band") if k not in p]
+        if missing:
+            raise ValueError(f"shear metrics need the parameters {missing} in the H5MD file's parameters; "
+                             "files written by `graphdem convert` for the shear scene carry them")
+        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.position[0, :, 2], float),
+                   float(p["split_height"]), float(p["failure_band"]))
+
+    def members(self) -> dict[str, np.ndarray]:
+        soil, z, zs = ~self.kinematic, self.height0, self.split_height
+        above = soil & (z > zs) & (z <= zs + self.band)
+        below = soil & (z >= zs - self.band) & (z < zs)
+        return {"Above": above, "Below": below, "Failure Surface": above | below, "All": soil}
+
+    def __call__(self, position: np.ndarray) -> dict[str, np.ndarray]:
+        """Per frame: the mean x of the soil particles (m); NaN on a non-finite frame."""
+        x = np.asarray(position, np.float64)[:, ~self.kinematic, 0]
+        return {"Mean x": x.mean(axis=1)}
+
+    def compare(self, predicted: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
+        """Per frame and set: sum and mean of |p_pred - p_true| (m); NaN for an empty set, +inf where
+        a predicted soil position is non-finite (a blow-up is an infinite error)."""
+        dist = np.linalg.norm(np.asarray(predicted, np.float64) - np.asarray(truth, np.float64), axis=-1)
+        broken = ~np.isfinite(np.asarray(predicted, np.float64)[:, ~self.kinematic]).all(axis=(1, 2))
+        out = {}
+        for name, mask in self.members().items():
+            total = dist[:, mask].sum(axis=1) if mask.any() else np.full(len(dist), np.nan)
+            mean = total / mask.sum() if mask.any() else np.full(len(dist), np.nan)
+            total[broken], mean[broken] = np.inf, np.inf
+            out[f"{name} sum"], out[f"{name} mean"] = total, mean
+        return out
 
 
 def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
@@ -138,10 +172,93 @@ def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
     return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
 
 
-def domain(cfg: dict, displacement: float) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds every particle must stay within: the box walls, shifted by the shear, plus a margin
-    of two wall diameters, and up to two box heights."""
-    length, width, height = cfg["box"]
-    margin = 4.0 * cfg["wall_radius"]
-    return (np.array([-margin, -margin, -margin]),
-            np.array([length + displacement + margin, width + margin, 2.0 * height]))
+def _setup(p: dict, name: str, particles: dem.Particles, bounds, schedule, **extra) -> dem.Setup:
+    dt, limit, kn = dem_step(p, where=name)
+    return dem.Setup(
+        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
+        kinematic_species=(BOX,), n_species=2, density=p["density"], gravity=p["gravity"],
+        contact=dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
+                            friction=p["friction"]),
+        dt=dt, dt_limit=limit, lower=bounds[0], upper=bounds[1], max_overlap=p["max_overlap"],
+        schedule=schedule(dt), **extra)
+
+
+class Shear(Scene):
+    name = "shear"
+    dim = 3
+    species = {BOX: "box", SOIL: "soil"}
+    kinematic_species = (BOX,)
+    engines = ("yade",)
+    packing_keys = ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "kt_over_kn",
+                    "restitution", "friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
+                    "max_overlap")
+    metrics = ShearMetrics
+    headline = "Failure Surface mean"
+    log_scaled_properties = ("young",)
+
+    def packings(self, cfg: dict) -> list[dict]:
+        """The one packing every sim shares: settled with the stiffest swept modulus.
+
+        Under self-weight the overlaps are below 1e-4 radii at every modulus of the sweep, so the
+        geometry barely depends on it; settling at the stiffest keeps overlaps smallest, and a softer
+        sim starts by sagging a few micrometres (never by springing apart).
+        """
+        return [self.packing_params(cfg, young=float(max(young_values(cfg))))]
+
+    def _axes(self, cfg: dict) -> list[tuple[float, float]]:
+        return [(e, float(d)) for e in young_values(cfg) for d in cfg["sweep"]["displacements"]]
+
+    def sweep_size(self, cfg: dict) -> int:
+        return len(young_values(cfg)) * len(cfg["sweep"]["displacements"])
+
+    def draw(self, cfg: dict, index: int, rng: np.random.Generator, packings: list[str]) -> dict:
+        """The soil modulus x shear displacement grid, modulus varying slowest; one shared packing."""
+        young, displacement = self._axes(cfg)[index]
+        return {"young": young, "displacement": displacement, "packing": packings[0]}
+
+    def finish_sweep(self, rows: list[dict], cfg: dict) -> None:
+        """``domain_displacement``, the largest displacement, fixes the same data bounds for every sim."""
+        for row in rows:
+            row["domain_displacement"] = max(float(d) for d in cfg["sweep"]["displacements"])
+
+    def settle_setup(self, params: dict) -> dem.Setup:
+        """The loose soil poured into the box (walls extended upwards)."""
+        return _setup(params, f"packing E = {params['young']:g} Pa", loose_packing(params), domain(params, 0.0),
+                      lambda dt: dem.Settle(damping=params["settle_damping"], damping_kind="local",
+                                            check_every=SETTLE_CHECK, max_time=params["settle_time"],
+                                            speed=params["settle_speed"]))
+
+    def settled(self, params: dict, particles: dem.Particles, where: str) -> dem.Particles:
+        """The settled pour, refused if under-filled, trimmed at the box height."""
+        check_filled(particles, params, where)
+        return trim(particles, params)
+
+    def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
+        """The lower box moves along +x at a speed that gives exactly ``displacement`` at the last frame."""
+        def record(dt: float) -> dem.Record:
+            interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
+            return dem.Record(start=0, every=max(1, int(round(interval / dt))), frames=row["frames"])
+
+        dt = dem_step(row, where=row["id"])[0]
+        every = record(dt).every
+        speed = row["displacement"] / (every * dt * (row["frames"] - 1))
+        box_lower, box_upper = domain(row, row["domain_displacement"])
+        return _setup(row, row["id"], packing, domain(row, row["displacement"]), record,
+                      motions=(dem.Motion(LOWER, (speed, 0.0, 0.0)),), box_lower=box_lower, box_upper=box_upper)
+
+    def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
+        return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0]}
+
+    def properties(self, row: dict) -> dict[str, float]:
+        return {"young": row["young"]}
+
+    def check(self, cfg: dict) -> None:
+        from generators.scene import check_range
+        check_range(self.name, "sweep.young", cfg["sweep"]["young"])
+        if cfg["wall_radius"] * (cfg["wall_spacing"] / 2**0.5 - 1.0) >= cfg["radius"][0]:
+            raise ConfigError(f"config keys 'shear.wall_radius' = {cfg['wall_radius']} and 'shear.wall_spacing' = "
+                              f"{cfg['wall_spacing']} leave holes in the box walls wider than the smallest soil "
+                              f"sphere ({cfg['radius'][0]} m): lower the spacing or raise the wall radius")
+
+
+SCENE = Shear()

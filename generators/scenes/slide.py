@@ -1,4 +1,4 @@
-"""The 2D landslide scene (article 5.1 "Slide"), independent of the engine that runs it.
+"""The 2D landslide scene (article 5.1 "Slide"): definition, DEM description and metrics (Table 3).
 
 A bedrock slope of fixed boundary particles carries a soil mass in three layers. A band dipping
 downslope (the middle layer) is made of sliding-prone soil: at the trigger its friction drops
@@ -13,43 +13,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from generators import contact
-from generators.scenes import packing
+from generators import contact, dem
+from generators.scene import Scene, check_range
 
 BEDROCK, STABLE, WEAK = 0, 1, 2
-SPECIES_NAMES = {BEDROCK: "bedrock", STABLE: "stable soil", WEAK: "sliding-prone soil"}
 WEAK_REFERENCE_X = 40.0   # m, where the weak layer's base height is measured
-
-# Parameters that shape the settled packing: a change in any of them makes a new packing.
-PACKING_KEYS = (
-    "domain", "gravity", "bedrock_profile", "soil_surface", "bedrock_radius", "radius",
-    "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
-    "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed", "max_overlap",
-)
+SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
 
 
 def polyline_y(points: list[list[float]], x: np.ndarray) -> np.ndarray:
     """Height of a polyline [[x, y], ...] at ``x`` (flat extrapolation beyond its ends)."""
     pts = np.asarray(points, float)
     return np.interp(x, pts[:, 0], pts[:, 1])
-
-
-def packing_params(cfg: dict, index: int) -> dict:
-    """The packing-relevant parameters of packing ``index`` (its seed included)."""
-    return packing.packing_params(cfg, PACKING_KEYS, index)
-
-
-@dataclass(frozen=True)
-class Particles:
-    """Particles of a scene before or after settling."""
-
-    x: np.ndarray        # [N, 2]
-    radius: np.ndarray   # [N]
-    species: np.ndarray  # [N] int
-
-    @property
-    def kinematic(self) -> np.ndarray:
-        return self.species == BEDROCK
 
 
 def bedrock_particles(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -77,7 +52,7 @@ def bedrock_particles(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
     return xy, np.full(len(xy), rb)
 
 
-def loose_packing(cfg: dict, seed: int) -> Particles:
+def loose_packing(cfg: dict, seed) -> dem.Particles:
     """Soil discs on a jittered triangular lattice filling the nominal soil region, plus bedrock.
 
     The lattice spacing is one maximum diameter, so nothing overlaps; settling under gravity
@@ -104,14 +79,11 @@ def loose_packing(cfg: dict, seed: int) -> Particles:
     angle = rng.uniform(0, 2 * math.pi, len(soil_xy))
     soil_xy += (0.9 * slack * rng.uniform(0, 1, len(soil_xy)))[:, None] * np.stack(
         [np.cos(angle), np.sin(angle)], axis=1)
-    return Particles(
-        x=np.concatenate([bed_xy, soil_xy]),
-        radius=np.concatenate([bed_r, radius]),
-        species=np.concatenate([np.full(len(bed_xy), BEDROCK), np.full(len(soil_xy), STABLE)]),
-    )
+    return dem.Particles(np.concatenate([bed_xy, soil_xy]), np.concatenate([bed_r, radius]),
+                         np.concatenate([np.full(len(bed_xy), BEDROCK), np.full(len(soil_xy), STABLE)]))
 
 
-def assign_layers(particles: Particles, weak_base: float, weak_thickness: float,
+def assign_layers(particles: dem.Particles, weak_base: float, weak_thickness: float,
                   weak_dip: float) -> np.ndarray:
     """Species of every particle once the three layers are set (the trigger).
 
@@ -126,4 +98,157 @@ def assign_layers(particles: Particles, weak_base: float, weak_thickness: float,
     return species
 
 
-dem_step = contact.disc_time_step      # bedrock is fixed: the limit is at two of the smallest soil discs
+
+@dataclass
+class SlideMetrics:
+    """Landslide body metrics of one trajectory.
+
+    The landslide body at frame tau is the set of moving particles displaced by more than
+    ``body_displacement`` (m) from their position at frame 0 of the sim; it is determined
+    separately in truth and prediction. ``body_displacement`` defaults to one mean diameter of
+    the moving particles.
+    """
+
+    kinematic: np.ndarray            # [N] bool
+    radius: np.ndarray               # [N] m
+    body_displacement: float | None = None
+
+    #: per-trajectory metrics (same code for truth and prediction), in output order
+    names = ("Slide Num", "Max Ht", "Mean Ht", "Tongue Dis")
+    #: metrics comparing a prediction with the truth
+    pair_names = ("Dis", "Dis mean")
+    units = {"Slide Num": "particles", "Max Ht": "m", "Mean Ht": "m", "Tongue Dis": "m", "Dis": "m", "Dis mean": "m"}
+
+    @classmethod
+    def for_trajectory(cls, traj, body_displacement: float | None = None) -> SlideMetrics:
+        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.radius, float), body_displacement)
+
+    @property
+    def threshold(self) -> float:
+        if self.body_displacement is not None:
+            return float(self.body_displacement)
+        return float(2.0 * np.mean(np.asarray(self.radius)[~np.asarray(self.kinematic, bool)]))
+
+    def body(self, position: np.ndarray) -> np.ndarray:
+        """[T, N] bool: moving particles farther than the threshold from their frame-0 position.
+
+        A non-finite position (a rollout that blew up) is in no body.
+        """
+        position = np.asarray(position, np.float64)
+        moved = np.linalg.norm(position - position[0], axis=-1)
+        with np.errstate(invalid="ignore"):
+            return (moved > self.threshold) & ~np.asarray(self.kinematic, bool)[None, :] & np.isfinite(moved)
+
+    def __call__(self, position: np.ndarray) -> dict[str, np.ndarray]:
+        """Per frame: Slide Num (count), Max Ht and Mean Ht (highest and mean y of the body, m),
+        Tongue Dis (largest x reached by a body particle, m). Heights and tongue are NaN for an
+        empty body, and every metric is NaN on a non-finite frame."""
+        position = np.asarray(position, np.float64)
+        body = self.body(position)
+        count = body.sum(axis=1).astype(np.float64)
+        y = np.where(body, position[..., 1], np.nan)
+        x = np.where(body, position[..., 0], np.nan)
+        empty = count == 0
+        with np.errstate(invalid="ignore"):
+            max_ht = np.where(empty, np.nan, np.nanmax(np.where(body, y, -np.inf), axis=1))
+            mean_ht = np.where(empty, np.nan, np.nansum(y, axis=1) / np.maximum(count, 1))
+            tongue = np.where(empty, np.nan, np.nanmax(np.where(body, x, -np.inf), axis=1))
+        broken = ~np.isfinite(position[:, ~np.asarray(self.kinematic, bool)]).all(axis=(1, 2))
+        out = {"Slide Num": count, "Max Ht": max_ht, "Mean Ht": mean_ht, "Tongue Dis": tongue}
+        for values in out.values():
+            values[broken] = np.nan
+        return out
+
+    def compare(self, predicted: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
+        """Per frame: Dis, the sum over the *true* body of |p_pred - p_true| (m), and its mean.
+
+        NaN where the true body is empty (undefined, as the heights), +inf where a moving particle's
+        predicted position is non-finite (a blow-up is an infinite error, never a missing one).
+        """
+        predicted = np.asarray(predicted, np.float64)
+        body = self.body(truth)
+        dist = np.linalg.norm(predicted - np.asarray(truth, np.float64), axis=-1)
+        count = body.sum(axis=1)
+        total = np.where(body, dist, 0.0).sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = total / np.maximum(count, 1)
+        broken = ~np.isfinite(predicted[:, ~np.asarray(self.kinematic, bool)]).all(axis=(1, 2))
+        for values in (total, mean):
+            values[count == 0] = np.nan
+            values[broken] = np.inf
+        return {"Dis": total, "Dis mean": mean}
+
+
+def _contact(p: dict, kn: float, friction: float, rolling_friction: float) -> dem.Contact:
+    return dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
+                       friction=friction, rolling_friction=rolling_friction)
+
+
+def _setup(p: dict, name: str, particles: dem.Particles, schedule, **extra) -> dem.Setup:
+    dt, limit, kn = contact.disc_time_step(p, where=name)
+    return dem.Setup(
+        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
+        kinematic_species=(BEDROCK,), n_species=3, density=p["density"], gravity=p["gravity"],
+        contact=_contact(p, kn, p["friction"], p["rolling_friction"]), dt=dt, dt_limit=limit,
+        lower=np.zeros(2), upper=np.asarray(p["domain"], float), max_overlap=p["max_overlap"],
+        schedule=schedule(dt), **extra)
+
+
+class Slide(Scene):
+    name = "slide"
+    dim = 2
+    species = {BEDROCK: "bedrock", STABLE: "stable soil", WEAK: "sliding-prone soil"}
+    kinematic_species = (BEDROCK,)
+    engines = ("lammps",)
+    # Parameters that shape the settled packing: a change in any of them makes a new packing.
+    packing_keys = (
+        "domain", "gravity", "bedrock_profile", "soil_surface", "bedrock_radius", "radius",
+        "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
+        "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed", "max_overlap",
+    )
+    metrics = SlideMetrics
+    headline = "Tongue Dis"
+
+    def sweep_size(self, cfg: dict) -> int:
+        return cfg["n_sims"]
+
+    def draw(self, cfg: dict, index: int, rng: np.random.Generator, packings: list[str]) -> dict:
+        """Base height, thickness and dip of the weak layer (uniform), optionally its friction, and one
+        of the packings."""
+        row = {}
+        for name in ("weak_base", "weak_thickness", "weak_dip"):
+            lo, hi = cfg["sweep"][name]
+            row[name] = round(float(rng.uniform(lo, hi)), 4)
+        if cfg["sweep"]["weak_friction"] is not None:
+            lo, hi = cfg["sweep"]["weak_friction"]
+            row["weak_friction"] = round(float(rng.uniform(lo, hi)), 4)
+        row["packing"] = packings[int(rng.integers(cfg["n_packings"]))]
+        return row
+
+    def settle_setup(self, params: dict) -> dem.Setup:
+        loose = loose_packing(params, seed=[params["seed"], 1000 + params["packing_index"]])
+        return _setup(params, "slide", loose, lambda dt: dem.Settle(
+            damping=params["settle_damping"], damping_kind="viscous", check_every=SETTLE_CHECK,
+            max_time=params["settle_time"], speed=params["settle_speed"]))
+
+    def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
+        """The trigger: the weak layer's species gets its lowered friction; frame 0 is recorded
+        ``record_start`` after it (rounded to whole frame intervals)."""
+        species = assign_layers(packing, row["weak_base"], row["weak_thickness"], row["weak_dip"])
+        particles = dem.Particles(packing.x, packing.radius, species)
+
+        def record(dt: float) -> dem.Record:
+            every = max(1, int(round(row["frame_interval"] / dt)))
+            return dem.Record(start=every * int(round(row["record_start"] / (every * dt))), every=every,
+                              frames=row["frames"])
+
+        kn = contact.disc_time_step(row, where=row["id"])[2]
+        return _setup(row, row["id"], particles, record, max_energy_gain=row["max_energy_gain"],
+                      species_contacts={WEAK: _contact(row, kn, row["weak_friction"], row["weak_rolling_friction"])})
+
+    def check(self, cfg: dict) -> None:
+        for key in ("weak_base", "weak_thickness", "weak_dip", "weak_friction"):
+            check_range(self.name, f"sweep.{key}", cfg["sweep"][key])
+
+
+SCENE = Slide()

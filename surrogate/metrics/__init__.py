@@ -1,15 +1,30 @@
-"""Evaluation metrics (docs/surrogate.md): one class per scene, applied alike to truth and prediction.
+"""Evaluation metrics (docs/surrogate.md): each scene's metric class (its module in generators/scenes),
+applied alike to truth and prediction, and the article's Acc.
 
-Each class has ``for_trajectory(traj, body_displacement)``, ``__call__(position)`` (per-frame
-metrics of one trajectory) and ``compare(predicted, truth)`` (per-frame errors of a prediction).
+A metric class has ``for_trajectory(traj, body_displacement)``, ``names``, ``pair_names``, ``units``,
+``__call__(position)`` (per-frame metrics of one trajectory) and ``compare(predicted, truth)``
+(per-frame errors of a prediction).
 """
 
+from __future__ import annotations
+
+from generators import scenes
 from surrogate.metrics.accuracy import accuracy
-from surrogate.metrics.meteorite import MeteoriteMetrics
-from surrogate.metrics.shear import ShearMetrics
-from surrogate.metrics.slide import SlideMetrics
 
-# scene name (the H5MD ``parameters/scene`` attribute) -> metric computer
-SCENES = {"slide": SlideMetrics, "meteorite": MeteoriteMetrics, "shear": ShearMetrics}
 
-__all__ = ["SCENES", "MeteoriteMetrics", "ShearMetrics", "SlideMetrics", "accuracy"]
+def of_scene(name: str):
+    """The metric class of scene ``name`` (the H5MD ``parameters/scene`` attribute); None for data of no
+    registered scene (e.g. an imported public benchmark, scored by rollout MSE only)."""
+    registry = scenes.registry()
+    return registry[name].metrics if name in registry else None
+
+
+def units() -> dict[str, str]:
+    """Unit of every metric of every scene, plus the rollout MSE's."""
+    out = {"rollout MSE": "m$^2$"}
+    for scene in scenes.registry().values():
+        out.update(scene.metrics.units)
+    return out
+
+
+__all__ = ["accuracy", "of_scene", "units"]

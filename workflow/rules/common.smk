@@ -1,4 +1,6 @@
-# Helpers shared by every rule: the resolved config, the sweep tables, per-job parameters.
+# Helpers shared by every rule: the resolved config, the scene registry's sweep tables, per-job parameters.
+# Scenes (generators/scenes/) and the public benchmarks (Solid-GN, imported) share the dataset, train and
+# evaluate rules through the wildcard `name`; input functions here give each its inputs.
 import json
 import os
 import sys
@@ -6,17 +8,18 @@ import sys
 from generators import config as gconfig
 from generators import scenes as gscenes
 from generators import sweep as gsweep
-from generators.scenes.packing import packing_key
+from generators.packing import packing_key
+from generators.scene import SURROGATE_KEYS
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
 
 try:
-    CFG = gconfig.resolve(config)
+    CFG = gconfig.load(config)           # the package's defaults, with --config / --configfile on top
 except gconfig.ConfigError as exc:
     sys.exit(f"graphdem: {exc}")
 
-SCENES = list(gconfig.SCENES)
+SCENES = gscenes.names()
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -25,7 +28,7 @@ BENCHMARKS = list(gconfig.BENCHMARKS)
 wildcard_constraints:
     scene="|".join(SCENES),
     bench="|".join(BENCHMARKS),
-    k=r"\d+",
+    name="|".join(SCENES + BENCHMARKS),
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
 
@@ -34,13 +37,17 @@ def _json(value) -> str:
     return json.dumps(value, sort_keys=True)
 
 
-# Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "benchmark", "stability")
+def is_scene(wildcards) -> bool:
+    return wildcards.name in SCENES
 
 
 def scene_config_json(wildcards) -> str:
     """The scene's DEM and sweep settings (what the sweep table depends on)."""
     return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in SURROGATE_KEYS})
+
+
+def scene_engine(wildcards) -> str:
+    return CFG[wildcards.scene]["engine"]
 
 
 def sim_ids(scene: str) -> list[str]:
@@ -63,32 +70,29 @@ def _physics(scene: str, sim: str) -> dict:
     return row
 
 
-def sim_row(wildcards) -> dict:
-    return _row(wildcards.scene, wildcards.sim)
-
-
 def sim_row_json(wildcards) -> str:
     return _json(_physics(wildcards.scene, wildcards.sim))
 
 
 def packing_of_sim(wildcards) -> str:
-    return f"results/{wildcards.scene}/packings/{sim_row(wildcards)['packing']}"
+    return f"results/{wildcards.scene}/packings/{_row(wildcards.scene, wildcards.sim)['packing']}"
 
 
 def packing_params_json(wildcards) -> str:
-    for params in gscenes.packings(wildcards.scene, CFG[wildcards.scene]):
+    for params in gscenes.get(wildcards.scene).packings(CFG[wildcards.scene]):
         if packing_key(params) == wildcards.key:
             return _json(params)
     raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
 
 
 def all_sims(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in sim_ids(wildcards.scene)]
+    scene = getattr(wildcards, "scene", None) or wildcards.name
+    return [f"results/{scene}/sims/{i}.h5" for i in sim_ids(scene)] if scene in SCENES else []
 
 
 def _section(wildcards) -> dict:
-    """The config section of a job's scene or public benchmark (wildcard `scene` or `bench`)."""
-    return CFG[getattr(wildcards, "scene", None) or wildcards.bench]
+    """The config section of a job's scene or public benchmark."""
+    return CFG[getattr(wildcards, "scene", None) or wildcards.name]
 
 
 def connectivity_radius(wildcards) -> float:
@@ -98,14 +102,6 @@ def connectivity_radius(wildcards) -> float:
 def test_ids(scene: str) -> list[str]:
     table = SWEEPS[scene]
     return list(table.loc[table["split"] == "test", "id"])
-
-
-def test_sims(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in test_ids(wildcards.scene)]
-
-
-def test_rollouts(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/rollouts/{i}.h5" for i in test_ids(wildcards.scene)]
 
 
 def model_config_json(wildcards) -> str:
@@ -123,8 +119,46 @@ def runtime_json(wildcards) -> str:
 
 
 def body_displacement_arg(wildcards) -> str:
-    value = CFG[wildcards.scene]["evaluate"]["body_displacement"]
+    value = _section(wildcards).get("evaluate", {}).get("body_displacement")
     return "" if value is None else f"--body-displacement {value}"
+
+
+def history_length(wildcards) -> int:
+    return _section(wildcards)["model"]["history"]
+
+
+# ---- the stages scenes and public benchmarks share -------------------------------------------------
+
+
+def dataset_table(wildcards) -> str:
+    """The split table a dataset is built from: the sweep (scenes) or the import's (public benchmarks)."""
+    return f"results/{wildcards.name}/sweep.csv" if is_scene(wildcards) else f"results/{wildcards.name}/import/splits.csv"
+
+
+def train_threads(wildcards) -> int:
+    """Scenes train on every core given; a public benchmark on one (graphs of ~100 particles gain little
+    from a second core, so under -c2 the two benchmarks train side by side)."""
+    return 64 if is_scene(wildcards) else 1    # Snakemake caps threads at --cores
+
+
+def progress_arg(wildcards) -> str:
+    return "" if is_scene(wildcards) else "--no-progress"
+
+
+def evaluated_rollouts(wildcards) -> list[str]:
+    """A scene's test rollouts (the rollout stage, one job per sim); a public benchmark rolls out inside
+    evaluate, once per protocol."""
+    if not is_scene(wildcards):
+        return []
+    return [f"results/{wildcards.name}/rollouts/{i}.h5" for i in test_ids(wildcards.name)]
+
+
+def evaluation_args(wildcards) -> str:
+    """The split, protocols and rollouts of the evaluate stage."""
+    if is_scene(wildcards):
+        return f"--split test --history {history_length(wildcards)} --rollouts results/{wildcards.name}/rollouts"
+    bench = CFG[wildcards.name]
+    return f"--split {bench['evaluate']['split']} --history {' '.join(str(k) for k in bench['protocols'])}"
 
 
 # ---- public benchmarks ---------------------------------------------------------------------------
@@ -156,24 +190,11 @@ def solidgn_limits(wildcards) -> str:
     return " ".join(f"--limit {split}={n}" for split, n in sims.items() if n is not None)
 
 
-def benchmark_split(wildcards) -> str:
-    return CFG[wildcards.bench]["evaluate"]["split"]
-
-
-def benchmark_protocols(wildcards, name: str) -> list[str]:
-    return [f"results/{wildcards.bench}/k{k}/{name}" for k in CFG[wildcards.bench]["protocols"]]
-
-
-def protocol_metrics(wildcards) -> list[str]:
-    return benchmark_protocols(wildcards, "metrics.csv")
-
-
-def protocol_metrics_per_step(wildcards) -> list[str]:
-    return benchmark_protocols(wildcards, "metrics_per_step.csv")
+# ---- stability and performance stages ------------------------------------------------------------
 
 
 def stage_config(scene: str, stage: str) -> dict:
-    """The scene's config section of an optional stage (stability, benchmark); a clear stop where the
+    """The scene's config section of an optional stage (stability, performance); a clear stop where the
     scene has none."""
     section = CFG[scene].get(stage)
     if section is None:
@@ -190,16 +211,16 @@ def stage_setting(stage: str, key: str):
     return setting
 
 
-def history_length(wildcards) -> int:
-    return CFG[wildcards.scene]["model"]["history"]
+def _first_test_ids(wildcards, stage: str) -> list[str]:
+    ids = test_ids(wildcards.scene)
+    if not ids:
+        raise ValueError(f"{wildcards.scene}: the sweep has no test sim for the {stage} stage")
+    return ids[: stage_config(wildcards.scene, stage)["sims"]]
 
 
 def stressed_ids(wildcards) -> list[str]:
     """The test sims of the stability stress tests (the first stability.sims)."""
-    ids = test_ids(wildcards.scene)
-    if not ids:
-        raise ValueError(f"{wildcards.scene}: the sweep has no test sim to stress")
-    return ids[: stage_config(wildcards.scene, "stability")["sims"]]
+    return _first_test_ids(wildcards, "stability")
 
 
 def stressed_sims(wildcards) -> list[str]:
@@ -208,8 +229,7 @@ def stressed_sims(wildcards) -> list[str]:
 
 def stressed_packing(wildcards) -> str:
     first = stressed_ids(wildcards)[0]
-    table = SWEEPS[wildcards.scene]
-    return f"results/{wildcards.scene}/packings/{table.loc[table['id'] == first, 'packing'].iloc[0]}"
+    return f"results/{wildcards.scene}/packings/{_row(wildcards.scene, first)['packing']}"
 
 
 def stressed_row_json(wildcards) -> str:
@@ -226,40 +246,36 @@ def surrogate_stress_args(wildcards) -> dict:
             "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
 
 
-def benchmarked_ids(wildcards) -> list[str]:
-    """The test sims the benchmark times (the first benchmark.sims)."""
-    ids = test_ids(wildcards.scene)
-    if not ids:
-        raise ValueError(f"{wildcards.scene}: the sweep has no test sim to benchmark")
-    return ids[: stage_config(wildcards.scene, "benchmark")["sims"]]
+def timed_ids(wildcards) -> list[str]:
+    """The test sims the performance stage times (the first performance.sims)."""
+    return _first_test_ids(wildcards, "performance")
 
 
-def benchmarked_sims(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in benchmarked_ids(wildcards)]
+def timed_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in timed_ids(wildcards)]
 
 
-def benchmarked_rows_json(wildcards) -> str:
-    return _json([_physics(wildcards.scene, i) for i in benchmarked_ids(wildcards)])
+def timed_rows_json(wildcards) -> str:
+    return _json([_physics(wildcards.scene, i) for i in timed_ids(wildcards)])
 
 
-def benchmarked_packings(wildcards) -> list[str]:
-    table = SWEEPS[wildcards.scene]
-    keys = dict.fromkeys(table.loc[table["id"].isin(benchmarked_ids(wildcards)), "packing"])
+def timed_packings(wildcards) -> list[str]:
+    keys = dict.fromkeys(_row(wildcards.scene, i)["packing"] for i in timed_ids(wildcards))
     return [f"results/{wildcards.scene}/packings/{k}" for k in keys]
 
 
 def contender_json(kind: str):
-    """Input function: the changes of one benchmark contender of ``kind`` (dem or surrogate)."""
+    """Input function: the changes of one performance contender of ``kind`` (dem or surrogate)."""
     def changes(wildcards) -> str:
-        contenders = stage_config(wildcards.scene, "benchmark")[kind]
+        contenders = stage_config(wildcards.scene, "performance")[kind]
         if wildcards.contender not in contenders:
             raise ValueError(f"{wildcards.scene}: no {kind} contender {wildcards.contender!r} in "
-                             f"benchmark.{kind}; configured: {sorted(contenders)}")
+                             f"performance.{kind}; configured: {sorted(contenders)}")
         return _json(contenders[wildcards.contender])
     return changes
 
 
 def contender_tables(wildcards) -> list[str]:
-    b = stage_config(wildcards.scene, "benchmark")
-    return [f"results/{wildcards.scene}/benchmark/{kind}/{name}.csv" for kind in ("dem", "surrogate")
+    b = stage_config(wildcards.scene, "performance")
+    return [f"results/{wildcards.scene}/performance/{kind}/{name}.csv" for kind in ("dem", "surrogate")
             for name in b[kind]]

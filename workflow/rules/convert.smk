@@ -1,4 +1,4 @@
-# Stage convert: raw engine output -> one validated H5MD file.
+# Stage convert: raw engine output (any scene, any engine; its run.json says which) -> one validated H5MD file.
 rule convert:
     input:
         "results/{scene}/raw/{sim}",
@@ -9,4 +9,4 @@ rule convert:
     benchmark:
         "results/{scene}/benchmarks/convert/{sim}.tsv"
     shell:
-        "graphdem convert --scene {wildcards.scene} --raw {input} --out {output} > {log} 2>&1"
+        "graphdem convert --raw {input} --out {output} > {log} 2>&1"

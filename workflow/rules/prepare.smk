@@ -4,9 +4,11 @@ rule prepare:
         directory("results/{scene}/packings/{key}"),
     params:
         packing=packing_params_json,
+        engine=scene_engine,
     log:
         "results/{scene}/logs/prepare/{key}.log",
     benchmark:
         "results/{scene}/benchmarks/prepare/{key}.tsv"
     shell:
-        "graphdem prepare --scene {wildcards.scene} --params {params.packing:q} --out {output} > {log} 2>&1"
+        "graphdem prepare --scene {wildcards.scene} --engine {params.engine} --params {params.packing:q} "
+        "--out {output} > {log} 2>&1"

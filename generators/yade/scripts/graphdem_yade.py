@@ -5,10 +5,9 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
 - ``settle``: spheres under gravity with Cundall's non-viscous local damping
   (``NewtonIntegrator.damping``) until the kinetic energy per soil sphere is below the tolerance or
   the time limit is reached; writes the final positions.
-- ``shear``: the direct-shear run: lower-half box spheres move at constant velocity, the rest of
-  the box is held, and the positions of every sphere are recorded every ``every`` steps.
-- ``collision``: two equal spheres approach head-on; writes their relative normal velocity before
-  and after the contact (the restitution test).
+- ``record``: each motion's spheres move at their constant velocity (fixed spheres not in a motion are
+  held), spheres with an initial ``velocity`` start with it; after ``start`` steps the positions of
+  every sphere are recorded every ``every`` steps.
 
 ``yade`` opens a TCP Python prompt and an XML-RPC server when it starts; the first thing this
 script does is close both, and it records any listening socket it still holds in its output.
@@ -115,11 +114,17 @@ def settle(job, out):
     np.savez(out, position=positions(ids), iterations=O.iter, time=O.time, kinetic_per_sphere=energy)
 
 
-def shear(job, out):
+def record(job, out):
     ids = build(job)
-    for i, moving in zip(ids, job["moving"], strict=True):
-        if moving:
-            O.bodies[i].state.vel = tuple(job["velocity"])
+    for i, v in zip(ids, job.get("velocity") or [], strict=False):
+        if any(v):
+            O.bodies[i].state.vel = tuple(v)
+    for motion in job["motions"]:
+        for i, moving in zip(ids, motion["mask"], strict=True):
+            if moving:
+                O.bodies[i].state.vel = tuple(motion["velocity"])
+    if job["start"]:
+        O.run(job["start"], True)
     frames, steps, times = [], [], []
     start = time.perf_counter()
     for f in range(job["frames"]):
@@ -133,31 +138,13 @@ def shear(job, out):
              mass=np.array([O.bodies[i].state.mass for i in ids]), loop_seconds=loop)
 
 
-def collision(job, out):
-    r, speed = job["radius"][0], job["speed"]
-    job = dict(job, position=[(0.0, 0.0, 0.0), (2.0 * r * 1.001, 0.0, 0.0)], radius=[r, r], fixed=[False, False],
-               gravity=0.0)
-    ids = build(job)
-    O.bodies[ids[0]].state.vel = (speed, 0.0, 0.0)
-    O.bodies[ids[1]].state.vel = (-speed, 0.0, 0.0)
-    touched = False
-    while True:
-        O.run(10, True)
-        if O.interactions.countReal():
-            touched = True
-        elif touched:
-            break
-    after = O.bodies[ids[1]].state.vel[0] - O.bodies[ids[0]].state.vel[0]
-    np.savez(out, before=2.0 * speed, after=after)
-
-
 def main():
     closed = close_servers()
     listening_at_start = listening_sockets()
     with open(sys.argv[1]) as fh:
         job = json.load(fh)
     out = job["out"]
-    {"settle": settle, "shear": shear, "collision": collision}[job["mode"]](job, out + ".tmp.npz")
+    {"settle": settle, "record": record}[job["mode"]](job, out + ".tmp.npz")
     os.replace(out + ".tmp.npz", out)
     with open(out + ".json", "w") as fh:
         json.dump({"servers_closed": closed, "listening_at_start": listening_at_start,

@@ -1,9 +1,9 @@
-"""Run time against error (docs/performance.md): DEM contenders and surrogate contenders, timed
+"""The performance stage: run time against error (docs/performance.md): DEM contenders and surrogate contenders, timed
 the same way on the same test sims, scored with the same metrics against the dataset.
 
 * A DEM contender reruns the engine on the sims' own settled packings with changed settings
   (``dt_factor`` multiplies the time step, ``stiffness_factor`` the Young's modulus, the time
-  step following the stable limit). Its time is LAMMPS' loop time of the recorded window only:
+  step following the stable limit). Its time is the engine's own timing of the recorded window only:
   neither the run-up before the first frame nor the settling (reported on its own row) counts.
 * A surrogate contender rolls the trained checkpoint out with other runtime switches; a contender
   with sizes (``latent``, ``hidden``, ``message_passing``) is an untrained model of that size,
@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from generators import convert, h5md, stability, stress
+from generators import blowup, convert, engine, h5md, scenes
 from surrogate import checkpoint
 from surrogate import runtime as rt
 from surrogate.evaluate import MSE, score, summarise
@@ -76,7 +76,7 @@ def dem_row(row: dict, variant: dict) -> dict:
 def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packings: list[Path],
                   truths: list[Path], history: int, repeats: int, body_displacement: float | None = None) -> dict:
     """Time and score one DEM contender on the sims of ``rows`` (truth in ``truths``)."""
-    engine = stress.engine(scene)
+    dem = scenes.get(scene)
     seconds, wall, steps_per_frame, per_step, peak, scored, work, blown = [], [], [], [], [], [], [], []
     for row, packing, truth_path in zip(rows, packings, truths, strict=True):
         truth = h5md.read(truth_path)
@@ -85,22 +85,22 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
             for repeat in range(repeats):
                 out = Path(scratch) / f"raw{repeat}"
                 try:
-                    meta = engine.simulate(dem_row(row, variant), packing, out)
-                except stability.BlowUp as exc:
+                    meta = engine.simulate(dem, dem_row(row, variant), packing, out)
+                except blowup.BlowUp as exc:
                     blown.append(f"{exc}")
                     break
                 runs.append(meta)
             if len(runs) < repeats:
                 continue
-            h5 = convert.convert(scene, Path(scratch) / "raw0", Path(scratch) / "run.h5")
+            h5 = convert.convert(Path(scratch) / "raw0", Path(scratch) / "run.h5")
             prediction = np.asarray(h5md.read(h5).position, np.float64)
         frames = truth.n_frames - history
         # the recorded window covers frames 1..T-1: the predicted frames' share of its loop time
-        seconds.append(statistics.median(m["window_seconds"] for m in runs) * frames / (truth.n_frames - 1))
-        per_step.append(statistics.median(m["window_seconds"] / m["window_steps"] for m in runs))
-        wall.append(statistics.median(m["wall_time"] for m in runs))
-        steps_per_frame.append(runs[0]["steps_per_frame"])
-        peak.append(max(m["max_rss_mb"] for m in runs))
+        seconds.append(statistics.median(m.window_seconds for m in runs) * frames / (truth.n_frames - 1))
+        per_step.append(statistics.median(m.window_seconds / m.window_steps for m in runs))
+        wall.append(statistics.median(m.run.wall_time for m in runs))
+        steps_per_frame.append(runs[0].steps_per_frame)
+        peak.append(max(m.run.max_rss_mb for m in runs))
         scored.append((row["id"], truth, prediction))
         work.append((frames, int((~np.asarray(truth.kinematic, bool)).sum())))
     out = {"contender": name, "kind": "dem", "settings": json.dumps(variant, sort_keys=True), "trained": True,

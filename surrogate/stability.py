@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from generators.stability import max_overlap_fraction
+from generators.blowup import max_overlap_fraction
 from surrogate import runtime as rt
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse

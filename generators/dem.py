@@ -1,0 +1,169 @@
+"""The engine-neutral description of a DEM run: what a scene asks an engine driver to simulate.
+
+A scene turns a config section (prepare) or a sweep row and its settled packing (simulate) into a
+:class:`Setup`; every engine driver (generators/lammps, generators/yade) runs any Setup whose features
+it supports and says by name which one it lacks. Nothing here knows a scene or an engine.
+
+Units are SI. ``D`` is the scene's dimension (2: discs of unit thickness, 3: spheres).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Particles:
+    """Particles of a scene: centres [N, D], radii [N], species ids [N], and named boolean groups
+    [N] a scene keeps with its packing (e.g. the shear box's moving lower half)."""
+
+    x: np.ndarray
+    radius: np.ndarray
+    species: np.ndarray
+    groups: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        return int(np.shape(self.x)[1])
+
+    def subset(self, keep: np.ndarray) -> Particles:
+        return Particles(self.x[keep], self.radius[keep], self.species[keep],
+                         {k: v[keep] for k, v in self.groups.items()})
+
+    def concat(self, other: Particles) -> Particles:
+        names = set(self.groups) | set(other.groups)
+        groups = {k: np.concatenate([self.groups.get(k, np.zeros(len(self.radius), bool)),
+                                     other.groups.get(k, np.zeros(len(other.radius), bool))]) for k in sorted(names)}
+        return Particles(np.concatenate([self.x, other.x]), np.concatenate([self.radius, other.radius]),
+                         np.concatenate([self.species, other.species]), groups)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Linear spring-dashpot contact with Coulomb friction and rolling resistance (generators/contact.py).
+
+    ``kn`` is the normal stiffness (N/m) of engines with a constant stiffness; engines that derive it
+    per contact from the radii use ``young`` (each driver documents its law).
+    """
+
+    young: float
+    kn: float
+    kt_over_kn: float
+    restitution: float
+    friction: float
+    rolling_friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class PlanarWall:
+    """A fixed planar wall normal to ``axis`` at ``lower`` and/or ``upper`` (None: no wall there),
+    with the setup's default contact."""
+
+    axis: int
+    lower: float | None
+    upper: float | None
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Kinematic particles of ``group`` (a name in Particles.groups) moved at constant ``velocity``."""
+
+    group: str
+    velocity: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Settle:
+    """Settle under gravity with damping until the moving particles are slow, or until ``max_time``.
+
+    ``damping`` is viscous (1/s, force -damping * m_mean * v) or Cundall's local non-viscous
+    coefficient (dimensionless), as ``damping_kind`` says. Every ``check_every`` seconds the run stops
+    once the moving particles' RMS speed is below ``speed``.
+    """
+
+    damping: float
+    damping_kind: str            # "viscous" | "local"
+    check_every: float           # s
+    max_time: float              # s
+    speed: float                 # m/s
+
+
+@dataclass(frozen=True)
+class Record:
+    """Run ``start`` steps unrecorded, then record ``frames`` frames ``every`` steps apart
+    (frame 0 at step ``start``)."""
+
+    start: int
+    every: int
+    frames: int
+
+
+@dataclass(frozen=True)
+class Setup:
+    """One DEM run, engine-neutral.
+
+    ``contact`` holds for every contact unless a species of the pair is in ``species_contacts``
+    (e.g. a weakened layer: the trigger). Particles of a ``kinematic`` species are never integrated;
+    they stay put unless a :class:`Motion` moves their group. ``velocity`` [N, D] is the initial
+    velocity. ``lower``/``upper`` bound the domain: a particle outside has escaped (a blow-up).
+    ``max_energy_gain`` (None: no check, e.g. when a motion supplies energy) bounds the growth of
+    kinetic plus gravitational energy of the moving particles, in units of M g d.
+    """
+
+    name: str                    # the sim id or packing key, for messages
+    particles: Particles
+    nominal_radius: float        # m, the scene's mean radius: rolling damping, settling damping, neighbour skin
+    kinematic_species: tuple[int, ...]
+    n_species: int
+    density: float
+    gravity: float
+    contact: Contact
+    dt: float
+    dt_limit: float
+    lower: np.ndarray
+    upper: np.ndarray
+    max_overlap: float
+    schedule: Settle | Record
+    species_contacts: dict[int, Contact] = field(default_factory=dict)
+    walls: tuple[PlanarWall, ...] = ()
+    motions: tuple[Motion, ...] = ()
+    velocity: np.ndarray | None = None
+    max_energy_gain: float | None = None
+    box_lower: np.ndarray | None = None      # the data's box (H5MD); default lower/upper
+    box_upper: np.ndarray | None = None
+
+    @property
+    def box(self) -> tuple[np.ndarray, np.ndarray]:
+        return (self.lower if self.box_lower is None else self.box_lower,
+                self.upper if self.box_upper is None else self.box_upper)
+
+    def group(self, name: str) -> np.ndarray:
+        if name not in self.particles.groups:
+            raise ValueError(f"{self.name}: no particle group {name!r}; groups: {sorted(self.particles.groups)}")
+        return self.particles.groups[name]
+
+    @property
+    def dim(self) -> int:
+        return self.particles.dim
+
+    @property
+    def kinematic(self) -> np.ndarray:
+        return np.isin(self.particles.species, self.kinematic_species)
+
+
+@dataclass(frozen=True)
+class Frames:
+    """What a driver's recorded run returns, in the particle order of the Setup."""
+
+    position: np.ndarray         # [T, N, D]
+    step: np.ndarray             # [T]
+    time: np.ndarray             # [T] s
+    mass: np.ndarray             # [N] kg (0 for kinematic particles of infinite mass, where an engine says so)
+    radius: np.ndarray           # [N] m, as the engine stored them
+    kinetic_energy: np.ndarray | None = None   # [T] J of the moving particles, where the engine reports it
+
+
+class UnsupportedSetup(ValueError):
+    """An engine driver cannot run a feature of a Setup; the message names the feature and the engine."""

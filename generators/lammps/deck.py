@@ -1,0 +1,153 @@
+"""LAMMPS input decks written from an engine-neutral Setup (generators/dem.py).
+
+The deck is saved as the run's ``in.lammps``: ``lmp -in in.lammps`` in the raw folder repeats the run.
+Numbers are written with 12 significant digits. Fix order (gravity, walls, damping, then the plane
+constraint last) is the order LAMMPS adds their forces in.
+
+Contact model (one definition, :func:`contact_model`, for particle pairs, per-species overrides and
+walls): LAMMPS ``pair_style granular`` with ``hooke kn e damping tsuji`` (linear normal spring and
+dashpot, constant kn = Contact.kn), ``tangential linear_history kt 1.0 mu`` (Coulomb friction) and
+``rolling sds kr gammar mur`` (rolling resistance). ``damping tsuji`` maps its input through Tsuji's
+polynomial; the restitution given is inverted through it (contact.lammps_tsuji_input) so that a linear
+contact has the configured one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from generators import contact as cm
+from generators import dem
+
+CONTACT_MODEL = ("linear spring-dashpot, Coulomb friction, rolling resistance "
+                 "(LAMMPS granular hooke/tsuji/linear_history/sds)")
+DATA = "data.lammps"
+STATIC = "static.dump"
+FRAMES = "frames.dump"
+PACKING = "packing.dump"
+AXES = "xyz"
+
+
+def fmt(value) -> str:
+    return f"{value:.12g}" if isinstance(value, float) else str(value)
+
+
+def contact_model(c: dem.Contact, density: float, nominal_radius: float, dim: int) -> str:
+    """The granular model arguments of ``c``: normal, tangential and rolling parts.
+
+    Rolling damping: critical-fraction damping of the rolling spring of a mean particle,
+    gammar = 2 zeta sqrt(kr m / 2) r^2 with zeta from the restitution.
+    """
+    kt = c.kt_over_kn * c.kn
+    mass = cm.disc_mass(density, nominal_radius) if dim == 2 else cm.sphere_mass(density, nominal_radius)
+    zeta = cm.damping_ratio(c.restitution)
+    gammar = 2.0 * zeta * math.sqrt(kt * mass / 2.0) * nominal_radius**2
+    return (f"hooke {fmt(c.kn)} {fmt(cm.lammps_tsuji_input(c.restitution))} damping tsuji "
+            f"tangential linear_history {fmt(kt)} 1.0 {fmt(c.friction)} "
+            f"rolling sds {fmt(kt)} {fmt(gammar)} {fmt(c.rolling_friction)}")
+
+
+def nominal_mass(setup: dem.Setup) -> float:
+    r = setup.nominal_radius
+    return cm.disc_mass(setup.density, r) if setup.dim == 2 else cm.sphere_mass(setup.density, r)
+
+
+def write_data(path, setup: dem.Setup, title: str) -> None:
+    """An `atom_style sphere` data file (density column 1: masses are set by the deck), with a
+    Velocities section where the setup starts particles moving."""
+    p = setup.particles
+    lower, upper = np.asarray(setup.lower, float), np.asarray(setup.upper, float)
+    lines = [f"LAMMPS data file: {title}", "", f"{len(p.x)} atoms", f"{setup.n_species} atom types", "",
+             f"{lower[0]:.10g} {upper[0]:.10g} xlo xhi", f"{lower[1]:.10g} {upper[1]:.10g} ylo yhi",
+             "-0.5 0.5 zlo zhi" if setup.dim == 2 else f"{lower[2]:.10g} {upper[2]:.10g} zlo zhi",
+             "", "Atoms # sphere", ""]
+    z = np.zeros(len(p.x)) if setup.dim == 2 else p.x[:, 2]
+    lines += [f"{i + 1} {int(t) + 1} {2 * r:.10g} 1 {x:.10g} {y:.10g} {zz:.10g}" for i, ((x, y), zz, r, t) in enumerate(zip(p.x[:, :2], z, p.radius, p.species, strict=True))]
+    if setup.velocity is not None and np.any(setup.velocity):
+        v = np.zeros((len(p.x), 3))
+        v[:, : setup.dim] = setup.velocity
+        lines += ["", "Velocities", ""]
+        lines += [f"{i + 1} {fmt(float(a))} {fmt(float(b))} {fmt(float(c))} 0 0 0" for i, (a, b, c) in enumerate(v)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _types(species: tuple[int, ...] | list[int]) -> str:
+    return " ".join(str(s + 1) for s in species)
+
+
+def setup_lines(setup: dem.Setup) -> list[str]:
+    """Everything up to the schedule: box, particles, groups, contact model, integration, gravity, walls."""
+    dim = setup.dim
+    if setup.motions:
+        raise dem.UnsupportedSetup(f"{setup.name}: the LAMMPS driver does not move kinematic particles yet "
+                                   f"(motions of groups {[m.group for m in setup.motions]}); run this scene in YADE")
+    if dim not in (2, 3):
+        raise dem.UnsupportedSetup(f"{setup.name}: dimension {dim}; LAMMPS runs 2 or 3")
+    kinematic = [s for s in range(setup.n_species) if s in setup.kinematic_species]
+    moving = [s for s in range(setup.n_species) if s not in setup.kinematic_species]
+    model = contact_model(setup.contact, setup.density, setup.nominal_radius, dim)
+    lines = [f"dimension       {dim}", "units           si", "atom_style      sphere",
+             f"boundary        f f {'p' if dim == 2 else 'f'}", "comm_modify     vel yes", f"read_data       {DATA}",
+             f"set             group all {'density/disc' if dim == 2 else 'density'} {fmt(float(setup.density))}"]
+    if kinematic:
+        lines.append(f"group           kinematic type {_types(kinematic)}")
+    lines += [f"group           moving type {_types(moving)}", "", "pair_style      granular",
+              f"pair_coeff      * * {model}"]
+    for species, override in sorted(setup.species_contacts.items()):
+        lines.append(f"pair_coeff      * {species + 1} "
+                     f"{contact_model(override, setup.density, setup.nominal_radius, dim)}")
+    exclude = "".join(f" exclude type {a + 1} {b + 1}" for i, a in enumerate(kinematic) for b in kinematic[i:])
+    down = "0 -1 0" if dim == 2 else "0 0 -1"
+    lines += [f"neighbor        {fmt(0.5 * setup.nominal_radius)} bin",
+              f"neigh_modify    delay 0 every 1 check yes{exclude}", "",
+              f"fix             integrate moving nve/sphere{' disc' if dim == 2 else ''}",
+              f"fix             gravity moving gravity {fmt(float(setup.gravity))} vector {down}"]
+    for k, wall in enumerate(setup.walls):
+        bounds = " ".join("NULL" if b is None else fmt(float(b)) for b in (wall.lower, wall.upper))
+        lines.append(f"fix             wall{k} all wall/gran granular {model} {AXES[wall.axis]}plane {bounds}")
+    return lines
+
+
+def settle_deck(setup: dem.Setup) -> str:
+    """Settle under gravity with viscous damping, checking the moving particles' RMS speed every
+    ``check_every`` seconds; write the settled positions to packing.dump."""
+    s = setup.schedule
+    if s.damping_kind != "viscous":
+        raise dem.UnsupportedSetup(f"{setup.name}: settling damping {s.damping_kind!r}; the LAMMPS driver damps "
+                                   "with a viscous force (damping_kind 'viscous')")
+    chunk = max(1, int(round(s.check_every / setup.dt)))
+    max_chunks = max(1, int(math.ceil(s.max_time / (chunk * setup.dt))))
+    coords = " ".join(AXES[: setup.dim])
+    lines = setup_lines(setup) + [
+        f"fix             damping moving viscous {fmt(s.damping * nominal_mass(setup))}",
+        *(["fix             plane all enforce2d"] if setup.dim == 2 else []),
+        f"timestep        {fmt(setup.dt)}", "",
+        "compute         ke moving ke",
+        "variable        rms_speed equal sqrt(2.0*c_ke/mass(moving))",
+        "thermo_style    custom step time c_ke v_rms_speed", f"thermo          {chunk}", "",
+        "label           settle", f"variable        chunk_index loop {max_chunks}", f"run             {chunk}",
+        f'if              "${{rms_speed}} < {fmt(float(s.speed))}" then "jump SELF settled"',
+        "next            chunk_index", "jump            SELF settle", "label           settled",
+        'print           "SETTLED step $(step) rms_speed ${rms_speed}"',
+        f"write_dump      all custom {PACKING} id type radius {coords} modify sort id format float %.10g"]
+    return "\n".join(lines) + "\n"
+
+
+def record_deck(setup: dem.Setup) -> str:
+    """Static fields once; run to frame 0; then the moving particles' positions every frame, and the
+    moving particles' kinetic energy (translational and rotational) in the thermo output."""
+    r = setup.schedule
+    coords = " ".join(AXES[: setup.dim])
+    lines = setup_lines(setup) + [
+        *(["fix             plane all enforce2d"] if setup.dim == 2 else []),
+        f"timestep        {fmt(setup.dt)}", "",
+        "compute         ke moving ke", "compute         erot moving erotate/sphere",
+        "thermo_style    custom step time c_ke c_erot", f"thermo          {r.every}", "",
+        f"write_dump      all custom {STATIC} id type radius mass modify sort id format float %.10g"]
+    if r.start:
+        lines.append(f"run             {r.start}")
+    lines += [f"dump            frames moving custom {r.every} {FRAMES} id {coords}",
+              "dump_modify     frames sort id format float %.10g", f"run             {r.every * (r.frames - 1)}"]
+    return "\n".join(lines) + "\n"

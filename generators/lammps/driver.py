@@ -1,0 +1,115 @@
+"""The LAMMPS driver: runs any scene's Setup (generators/dem.py) that LAMMPS supports.
+
+``settle`` writes the deck of a Settle schedule and returns the settled particles; ``record`` writes
+the deck of a Record schedule and returns the recorded frames; ``read_raw`` reads a recorded run's
+folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``), fixed kinematic
+species, planar walls, per-species contact overrides, initial velocities. Not yet: moving kinematic
+particles and 3D scenes' box motions (the shear scene runs in YADE).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from generators import blowup, dem
+from generators.lammps import deck, io, runner
+from generators.record import EngineRun
+
+ENGINE = "lammps"
+CONTACT_MODEL = deck.CONTACT_MODEL
+
+
+def _engine_run(run: runner.Run, log: Path) -> EngineRun:
+    loops = io.loop_times(log)
+    return EngineRun(engine=ENGINE, version=run.version, command=run.command, wall_time=run.wall_time,
+                     max_rss_mb=run.max_rss_mb, window_seconds=loops[-1][0] if loops else None,
+                     steps=sum(n for _, n in loops))
+
+
+def _blowup(setup: dem.Setup, exc: runner.LammpsError, start: int, every: int) -> blowup.BlowUp:
+    """A LAMMPS error as a named blow-up: the frame it happened at and the cause in words."""
+    cause = str(exc)
+    if "Lost atoms" in cause:
+        cause = f"particles left the domain ({cause})"
+    elif "Non-numeric" in cause or "nan" in cause.lower():
+        cause = f"non-finite values ({cause})"
+    if exc.step < start:
+        cause += (f", after DEM step {exc.step} (its last thermo output), in the run-up before the first "
+                  f"recorded frame")
+    return blowup.BlowUp(setup.name, max(0, exc.step - start) // every, cause)
+
+
+def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
+    """Settle ``setup`` (a Settle schedule) in ``workdir``; the particles at rest, in setup order."""
+    workdir = Path(workdir)
+    deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name} loose packing")
+    run = runner.run(deck.settle_deck(setup), workdir)
+    (_, table), = io.read_dump(workdir / deck.PACKING)
+    (workdir / deck.PACKING).unlink()
+    x = table[list(deck.AXES[: setup.dim])].to_numpy(float)
+    p = setup.particles
+    return dem.Particles(x, table["radius"].to_numpy(float), table["type"].to_numpy() - 1, p.groups), \
+        _engine_run(run, workdir / "log.lammps")
+
+
+def record(setup: dem.Setup, workdir: Path) -> tuple[dem.Frames, EngineRun]:
+    """Run ``setup`` (a Record schedule) in ``workdir``; blow-ups reported by LAMMPS raise BlowUp."""
+    workdir = Path(workdir)
+    schedule = setup.schedule
+    deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name}")
+    try:
+        run = runner.run(deck.record_deck(setup), workdir)
+    except runner.LammpsError as exc:
+        raise _blowup(setup, exc, schedule.start, schedule.every) from exc
+    raw = read_raw(workdir, setup.dt)
+    thermo = io.read_thermo(workdir / "log.lammps").drop_duplicates("Step", keep="last").set_index("Step")
+    missing = sorted(set(raw["step"].tolist()) - set(thermo.index.astype(int).tolist()))
+    if missing:
+        raise io.LammpsOutputError(f"{setup.name}: no thermo output at recorded steps {missing[:3]}")
+    kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
+    frames = dem.Frames(position=raw["position"], step=raw["step"], time=raw["time"], mass=raw["mass"],
+                        radius=raw["radius"], kinetic_energy=kinetic)
+    return frames, _engine_run(run, workdir / "log.lammps")
+
+
+def read_raw(raw_dir: Path, dt: float) -> dict:
+    """Positions [T, N, D] of every particle (fixed ones from the data file, moving ones from the frames
+    dump), physical times (step x dt) and the static fields."""
+    raw_dir = Path(raw_dir)
+    (_, static), = io.read_dump(raw_dir / deck.STATIC)
+    frames = io.read_dump(raw_dir / deck.FRAMES)
+    coords = [c for c in deck.AXES if c in frames[0][1].columns]
+    data = _data_positions(raw_dir / deck.DATA)[:, : len(coords)]
+    ids = static["id"].to_numpy()
+    index = {int(i): k for k, i in enumerate(ids)}
+    position = np.repeat(data[None, ids - 1], len(frames), axis=0)
+    steps = []
+    for f, (step, table) in enumerate(frames):
+        position[f, [index[int(i)] for i in table["id"]]] = table[coords].to_numpy(float)
+        steps.append(step)
+    dumped = set(frames[0][1]["id"].astype(int))
+    if any(set(t["id"].astype(int)) != dumped for _, t in frames):
+        raise io.LammpsOutputError(f"{raw_dir}: the frames do not all hold the same particles")
+    species = static["type"].to_numpy() - 1
+    step = np.asarray(steps)
+    return {"position": position, "step": step, "time": step * dt, "species": species,
+            "radius": static["radius"].to_numpy(float), "mass": static["mass"].to_numpy(float),
+            "moving": np.array([int(i) in dumped for i in ids])}
+
+
+def _data_positions(path: Path) -> np.ndarray:
+    """[N, 3] centres of a data file's Atoms section, by atom id."""
+    lines = Path(path).read_text().splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("Atoms")) + 2
+    rows = []
+    for line in lines[start:]:
+        if not line.strip():
+            if rows:
+                break
+            continue
+        rows.append(line.split())
+    table = np.array(rows, float)
+    return table[np.argsort(table[:, 0])][:, 4:7]
+

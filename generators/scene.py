@@ -1,0 +1,124 @@
+"""The Scene protocol: everything the pipeline knows about one DEM scene, in one module.
+
+A scene module ``generators/scenes/<name>.py`` defines ``SCENE``, an instance of a :class:`Scene`
+subclass; its config section (with its scale presets) is ``generators/scenes/<name>.yaml`` and its
+schema fragment ``generators/scenes/<name>.schema.yaml``. The registry (generators/scenes) finds
+them; every stage iterates the registry and no other file names a scene.
+
+What a scene provides:
+
+- identity: ``name``, ``dim``, ``species`` (id -> name), ``kinematic_species``, ``engines`` it runs on;
+- the sweep: ``packing_keys`` (config keys that shape a settled packing; every other physical key of
+  the section goes into each sweep row), :meth:`sweep_size` and :meth:`draw` (the swept values of sim
+  ``i``), :meth:`packings`;
+- engine-neutral descriptions (generators/dem.py): :meth:`settle_setup` (prepare),
+  :meth:`simulate_setup` (simulate), and :meth:`settled` (what the scene keeps of a settled pour);
+- data: :meth:`h5md_parameters` and :meth:`properties` (per-particle properties f_i) of a sim;
+- checks: :meth:`check` (config semantics, raising ConfigError with the key's name);
+- metrics: ``metrics``, a class with ``for_trajectory(traj, body_displacement)``, ``names``,
+  ``pair_names``, ``units``, ``__call__(position)`` and ``compare(predicted, truth)``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from generators import dem
+from generators.packing import packing_key, packing_params
+
+# Keys of a scene section that never enter a sweep row: sweep and sizes, surrogate settings, and the
+# settling of the packing (which only the packing key carries).
+NOT_IN_ROWS = frozenset({
+    "seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time", "settle_damping",
+    "settle_speed", "model", "train", "runtime", "evaluate", "performance", "stability", "scales"})
+# Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability")
+
+
+class Scene(ABC):
+    """One DEM scene; subclasses set the class attributes and implement the abstract methods."""
+
+    name: ClassVar[str]
+    dim: ClassVar[int]
+    species: ClassVar[dict[int, str]]
+    kinematic_species: ClassVar[tuple[int, ...]]
+    engines: ClassVar[tuple[str, ...]]
+    packing_keys: ClassVar[tuple[str, ...]]
+    metrics: ClassVar[type]
+    #: the metric that stands for the scene in summaries (a name in metrics.names)
+    headline: ClassVar[str]
+
+    # ---- sweep ---------------------------------------------------------------------------------
+
+    def packing_params(self, cfg: dict, index: int | None = None, **fixed) -> dict:
+        return packing_params(cfg, self.packing_keys, index, **fixed)
+
+    def packings(self, cfg: dict) -> list[dict]:
+        """Every packing the sweep uses (each settled once by the prepare stage); default:
+        ``n_packings`` packings of the same parameters and different seeds."""
+        return [self.packing_params(cfg, i) for i in range(cfg["n_packings"])]
+
+    def packing_keys_of(self, cfg: dict) -> list[str]:
+        return [packing_key(p) for p in self.packings(cfg)]
+
+    @abstractmethod
+    def sweep_size(self, cfg: dict) -> int:
+        """Number of sims of the sweep."""
+
+    @abstractmethod
+    def draw(self, cfg: dict, index: int, rng: np.random.Generator, packings: list[str]) -> dict:
+        """The swept values of sim ``index`` and its ``packing`` key; ``rng`` is the sim's own generator
+        (seeded by (seed, index), its first draw already taken for the sim's seed)."""
+
+    def finish_sweep(self, rows: list[dict], cfg: dict) -> None:
+        """Columns that depend on the whole sweep (added in place); default: none."""
+
+    def row_params(self, cfg: dict) -> dict:
+        """The physical parameters every sweep row carries: the section less NOT_IN_ROWS."""
+        return {k: v for k, v in cfg.items() if k not in NOT_IN_ROWS}
+
+    # ---- descriptions --------------------------------------------------------------------------
+
+    @abstractmethod
+    def settle_setup(self, params: dict) -> dem.Setup:
+        """The loose packing of ``params`` (a packing's parameters) to settle under gravity."""
+
+    def settled(self, params: dict, particles: dem.Particles, where: str) -> dem.Particles:
+        """What the scene keeps of a settled pour (default: all of it)."""
+        return particles
+
+    @abstractmethod
+    def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
+        """The recorded run of sweep row ``row`` from its settled packing."""
+
+    # ---- data ----------------------------------------------------------------------------------
+
+    def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict[str, Any]:
+        """Scene parameters stored in the sim's H5MD /parameters besides the sweep row."""
+        return {}
+
+    def properties(self, row: dict) -> dict[str, float]:
+        """Per-particle properties f_i of a sim (name -> value of every particle); default: none."""
+        return {}
+
+    #: properties the dataset normalises in log space
+    log_scaled_properties: ClassVar[tuple[str, ...]] = ()
+
+    # ---- checks --------------------------------------------------------------------------------
+
+    def check(self, cfg: dict) -> None:
+        """Semantic checks of the resolved section (the schema has checked types and ranges)."""
+
+    @property
+    def kinematic_names(self) -> list[str]:
+        return [self.species[s] for s in self.kinematic_species]
+
+
+def check_range(section: str, key: str, value) -> None:
+    """Refuse a [min, max] pair whose min exceeds its max (``key`` below the config section ``section``)."""
+    from generators.config import ConfigError
+    if isinstance(value, list) and len(value) == 2 and value[0] > value[1]:
+        raise ConfigError(f"config key '{section}.{key}' = {value} must be [min, max] with min <= max")

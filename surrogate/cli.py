@@ -1,0 +1,370 @@
+"""`graphdem`: the command line of the pipeline; each Snakemake rule calls one subcommand.
+
+The generators' stages (config, sweep, prepare, simulate, convert, inspect, import-solidgn,
+stability-dem) come from generators/cli.py; this module adds the surrogate's (dataset, train, rollout,
+evaluate, combine, stability-surrogate and the performance stage's subcommands) and runs them all.
+Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the
+file, sim, frame or config key) when something is wrong.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from generators import cli as gcli
+from generators import scenes
+
+_json = gcli.json_arg
+
+
+def cmd_dataset(args) -> None:
+    import pandas as pd
+
+    from generators import h5md, plots
+    from surrogate import dataset
+    table = pd.read_csv(args.table)
+    if "path" not in table.columns:
+        if args.sims is None:
+            raise SystemExit(f"graphdem dataset: {args.table} has no path column; give --sims, the folder of <id>.h5")
+        table = dataset.split_table(table, Path(args.sims))
+    stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius)
+    print(json.dumps(stats, indent=2))
+    if args.plot:
+        splits = pd.read_csv(Path(args.out_dir) / "splits.csv")
+        first = splits[splits["split"] == "train"].iloc[0]
+        traj = h5md.read(first["path"])
+        names = {int(k): v for k, v in dict(traj.parameters.get("species_names") or {}).items()}
+        position, radius, lower, upper = traj.position, traj.radius, traj.box_lower, traj.box_upper
+        title, ylabel = f"{args.scene}: {first['id']}", "y (m)"
+        if traj.dim == 3:                       # a vertical section through the middle, seen from the side
+            mid = 0.5 * float(lower[1] + upper[1])
+            position, radius = plots.plane_section(position, radius, mid, axis=1)
+            lower, upper, ylabel = lower[[0, 2]], upper[[0, 2]], "z (m)"
+            title += f", section y = {mid:.4g} m"
+        plots.first_last(args.plot, position, radius, traj.species, traj.time, lower, upper, title, names,
+                         ylabel=ylabel)
+
+def _logging() -> None:
+    import logging
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+
+def cmd_train(args) -> None:
+    from surrogate import train
+    _logging()
+    state = train.train(args.stats, args.splits, args.model_json, args.train_json, args.out_dir,
+                        threads=args.threads, fresh=args.fresh, max_steps=args.max_steps,
+                        progress=not args.no_progress)
+    print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
+
+def cmd_rollout(args) -> None:
+    import torch
+
+    from surrogate import checkpoint, evaluate, rollout
+    from surrogate.samples import load_sim
+    _logging()
+    torch.set_num_threads(max(1, args.threads))
+    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    simulator, rt = _runtime(args, simulator)
+    sha = checkpoint.digest(args.checkpoint)
+    for path in evaluate.data_files(args.data):
+        sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [])
+        result = rollout.rollout(simulator, sim, runtime=rt)
+        out = rollout.write(Path(args.out_dir) / f"{sim.id}.h5", sim, result, args.checkpoint, sha)
+        per_frame = result.seconds / max(result.n_predicted, 1)
+        status = "" if result.first_nonfinite is None else f", NON-FINITE from frame {result.first_nonfinite}"
+        print(f"{out}: {result.n_predicted} frames predicted in {result.seconds:.2f} s "
+              f"({1000 * per_frame:.1f} ms per frame, of which graph building "
+              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status})")
+
+def cmd_evaluate(args) -> None:
+    import pandas as pd
+
+    from surrogate import evaluate, plots
+    _logging()
+    if (args.data is None) == (args.splits is None):
+        raise SystemExit("graphdem evaluate: give either --data (H5MD files or folders) or --splits (a split table)")
+    if args.splits is not None:
+        split, data, note = evaluate.evaluation_split(pd.read_csv(args.splits), args.split)
+    else:
+        if args.split == "auto":
+            raise SystemExit("graphdem evaluate: --split auto needs --splits; with --data name the split "
+                             "(test or valid)")
+        split, data, note = args.split, args.data, ""
+    if note:
+        print(f"NOTE: {note}")
+    if args.rollouts is not None and len(args.history) > 1:
+        raise SystemExit("graphdem evaluate: --rollouts holds rollouts of one K; give one --history with it")
+    tables, per_step, first = [], [], None
+    for k in args.history:                   # one protocol per K, stacked (the `history` column tells them apart)
+        table, steps, sims = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
+                                               body_displacement=args.body_displacement, threads=args.threads,
+                                               progress=not args.no_progress, split=split, split_note=note,
+                                               runtime=_runtime_config(args))
+        tables.append(table)
+        per_step.append(steps)
+        first = first or sims
+        print(f"K = {k}:\n{evaluate.report(table)}")
+    table, steps, sims = pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first
+    evaluate.write(table, steps, args.out, args.per_step)
+    if args.plots:
+        scene = str(table["scene"].iloc[0])
+        name = str(sims[0].traj.parameters.get("dataset", scene))
+        nominal_time = scene == "solidgn"         # Solid-GN stores a nominal dt: frames are the honest axis
+        ks = ", ".join(str(k) for k in args.history)
+        plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
+                                  f"{name}: mean over {len(sims)} {split} sims, K = {ks}"
+                                  + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
+                                  x="tau" if nominal_time else "time")
+        pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
+        if pick is not None:
+            t = pick.traj
+            names = {int(k): v for k, v in dict(t.parameters.get("species_names") or {}).items()}
+            truth, pred, radius = pick.truth, pick.predictions[evaluate.MODEL], t.radius
+            title = f"{name} {pick.id}: DEM (left) and Graph-DEM (right)"
+            if truth.shape[-1] == 3:           # a 3D scene: the section by its split plane (shear box)
+                height = float(t.parameters.get("split_height", 0.5 * (t.box_lower[2] + t.box_upper[2])))
+                (truth, radius_truth), (pred, radius_pred) = (plots.plane_section(p, radius, height)
+                                                              for p in (truth, pred))
+                radius = (radius_truth, radius_pred)
+                title += f"\nsection z = {1000 * height:.1f} mm (the box's split plane), seen from above"
+            plots.animation(Path(args.plots) / "rollout.gif", truth, pred, radius, t.species, t.time,
+                            t.box_lower[:2], t.box_upper[:2], args.history[0], title, names)
+
+def cmd_combine(args) -> None:
+    from generators.atomic import atomic_path
+    from surrogate.evaluate import combine
+    table = combine(args.tables, union=args.union)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
+
+def cmd_stability_surrogate(args) -> None:
+    import torch
+
+    from generators.atomic import atomic_path
+    from surrogate import checkpoint, evaluate, stability
+    from surrogate.samples import load_sim
+    _logging()
+    torch.set_num_threads(max(1, args.threads))
+    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or []) for p in evaluate.data_files(args.data)]
+    rt = _runtime_config(args, required_by="stability-surrogate")
+    table = stability.surrogate_report(simulator, rt, sims, args.lengths, args.noise, args.seed, args.max_overlap)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(table.drop(columns=["cause"]).to_string(index=False))
+
+def _write_rows(rows: list[dict], out: Path) -> None:
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    with atomic_path(out) as tmp:
+        pd.DataFrame(rows).to_csv(tmp, index=False)
+
+def cmd_performance_dem(args) -> None:
+    from surrogate import performance
+    rows = args.sims
+    packings = [Path(args.packings) / row["packing"] for row in rows]
+    result = performance.dem_contender(args.name, args.variant, args.scene, rows, packings, args.truth, args.history,
+                                     args.repeats, args.body_displacement)
+    _write_rows([result], args.out)
+    print(json.dumps(result, indent=1, default=str))
+
+def cmd_performance_surrogate(args) -> None:
+    from surrogate import performance
+    result = performance.surrogate_contender(args.name, args.variant, args.checkpoint,
+                                           _runtime_config(args, required_by="performance-surrogate"), args.data,
+                                           args.repeats, args.threads, body_displacement=args.body_displacement)
+    _write_rows([result], args.out)
+    print(json.dumps(result, indent=1, default=str))
+
+def cmd_performance_report(args) -> None:
+    import numpy as np
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    from surrogate import performance, plots
+    contenders = pd.concat([pd.read_csv(p) for p in args.tables], ignore_index=True)
+    from generators import record
+    settling = [record.read(p).run.wall_time for p in args.packings or []]
+    table = performance.report(contenders, args.main, args.reference, float(np.mean(settling)) if settling else None)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    plots.pareto(table, args.plot, args.title)
+    main = table[table["main"].astype(bool)].iloc[0]
+    print(f"{args.out}: {len(table)} rows; {main['contender']}: {main['seconds_per_frame'] * 1000:.2f} ms per frame, "
+          f"{main['speedup_vs_reference']:.1f}x faster than the DEM reference, "
+          f"{main['speedup_vs_matched_dem']:.1f}x faster than {main['matched_dem']} (the fastest DEM at least as "
+          f"accurate), break-even at {main['break_even_substeps']:.0f} DEM sub-steps per frame")
+
+def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True) -> None:
+    p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
+    p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--runtime-json", type=_json,
+                   help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
+                        "precision, sleep_speed; docs/performance.md); default: compute as in training")
+
+def _runtime_config(args, required_by: str | None = None):
+    """The Runtime of --runtime-json; None without it, unless the command ``required_by`` needs it."""
+    from surrogate import runtime
+    if args.runtime_json is None:
+        if required_by:
+            raise SystemExit(f"graphdem {required_by}: --runtime-json is required (the scene's runtime config)")
+        return None
+    return runtime.Runtime.from_config(args.runtime_json)
+
+def _runtime(args, simulator):
+    """The simulator prepared for the --runtime-json switches, and the Runtime (None without)."""
+    from surrogate import runtime
+    rt = _runtime_config(args)
+    return (simulator, None) if rt is None else (runtime.apply(simulator, rt), rt)
+
+def _body_displacement(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="graphdem",
+        description="Graph-DEM pipeline: DEM sweeps (LAMMPS, YADE) to H5MD datasets, then training, rollout and "
+                    "evaluation of the Graph-DEM surrogate. The Snakemake workflow calls these subcommands; they "
+                    f"can also be run by hand. Scenes: {', '.join(scenes.names())}.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    gcli.add_commands(sub)
+    names = scenes.names()
+    p = sub.add_parser("dataset", help="write splits.csv and stats.json (train split only)",
+                       description="Split table and normalisation statistics of the train split. --table is a "
+                                   "scene's sweep.csv (id, split; the files are --sims/<id>.h5) or a split table "
+                                   "with a path column, such as the one import-solidgn writes.")
+    p.add_argument("--scene", choices=names + list(gcli.gconfig.BENCHMARKS), required=True)
+    p.add_argument("--table", type=Path, required=True, help="sweep.csv or a split table (id, split[, path])")
+    p.add_argument("--sims", type=Path, help="folder of <id>.h5 files, for a table without a path column")
+    p.add_argument("--out-dir", type=Path, required=True)
+    p.add_argument("--connectivity-radius", type=float, required=True, help="graph radius R (m)")
+    p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
+    p.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
+                       description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
+                                   "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
+                                   "used to resume) and history.csv into --out-dir.")
+    p.add_argument("--stats", type=Path, required=True, help="dataset stats.json")
+    p.add_argument("--splits", type=Path, required=True, help="dataset splits.csv")
+    p.add_argument("--model-json", type=_json, required=True, help="the scene's model config (JSON)")
+    p.add_argument("--train-json", type=_json, required=True, help="the scene's train config (JSON)")
+    p.add_argument("--out-dir", type=Path, required=True)
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
+    p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("rollout", help="predict every frame after the first K of each sim; write H5MD",
+                       description="Roll the checkpoint's model out on H5MD sims: the first K frames come "
+                                   "from the data, every later frame is predicted; kinematic particles follow "
+                                   "the data. Writes <out-dir>/<sim>.h5 in the sims' layout.")
+    _checkpoint_and_data(p)
+    p.add_argument("--out-dir", type=Path, required=True)
+    p.set_defaults(func=cmd_rollout)
+
+    p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
+                       description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
+                                   "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
+                                   "where the scene is known, beside a constant-velocity baseline. The sims are "
+                                   "--data, or one split of a --splits table.")
+    _checkpoint_and_data(p, data_required=False)
+    p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
+    p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
+                   help="which split the sims are (with --data) or which to take from --splits; auto: test where "
+                        "the table has one, else valid (said in every output)")
+    p.add_argument("--history", type=int, nargs="+", required=True,
+                   help="K of each protocol: frames given from the data and not scored; at least the history "
+                        "length the checkpoint reads (more: each step still reads its last frames). Several K: "
+                        "one table with a row set per K (the history column), plots of all, the GIF of the first")
+    p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
+    p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
+    p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
+    _body_displacement(p)
+    p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
+    p.add_argument("--animate", help="sim id to animate (default: the first)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("combine", help="stack CSV tables of the same columns (e.g. one per protocol)")
+    p.add_argument("--tables", type=Path, nargs="+", required=True)
+    p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_combine)
+
+    p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
+                       description="Stress test of the surrogate on H5MD sims: rollouts --lengths times the "
+                                   "recorded window from a history with random-walk noise (non-finite frames, "
+                                   "escapes, overlaps, error growth per step, final speed), and the recorded "
+                                   "rollout in float64, float32 and bfloat16 (differences from float64).")
+    _checkpoint_and_data(p)
+    p.add_argument("--lengths", type=int, nargs="+", required=True, help="rollout lengths in recorded windows")
+    p.add_argument("--noise", type=float, required=True, help="std (m per frame) of the initial history's noise")
+    p.add_argument("--seed", type=int, required=True, help="seed of the history noise")
+    p.add_argument("--max-overlap", type=float, required=True, help="overlap limit (fraction of the smaller radius)")
+    p.add_argument("--out", type=Path, required=True, help="CSV report")
+    p.set_defaults(func=cmd_stability_surrogate)
+
+    p = sub.add_parser("performance-dem", help="time and score one DEM contender (changed time step or stiffness)",
+                       description="Rerun the DEM on the sims of --sims (their settled packings) with the changes "
+                                   "of --variant (dt_factor, stiffness_factor), --repeats times each; time the "
+                                   "recorded window (LAMMPS loop time) and score against --truth. One CSV row.")
+    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--name", required=True, help="the contender's name")
+    p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"dt_factor": 2}')
+    p.add_argument("--sims", type=_json, required=True, help="the sims' sweep rows (JSON list)")
+    p.add_argument("--packings", type=Path, required=True, help="folder of the settled packings")
+    p.add_argument("--truth", type=Path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
+    p.add_argument("--history", type=int, required=True, help="K: frames not scored (the surrogate's input)")
+    p.add_argument("--repeats", type=int, required=True)
+    _body_displacement(p)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_performance_dem)
+
+    p = sub.add_parser("performance-surrogate", help="time and score one surrogate contender",
+                       description="Roll the checkpoint out on --data with the runtime switches of --runtime-json "
+                                   "changed by --variant (and, with latent/hidden/message_passing in it, an "
+                                   "untrained model of that size, timed only): one warm-up, then the median of "
+                                   "--repeats. One CSV row.")
+    _checkpoint_and_data(p)
+    p.add_argument("--name", required=True, help="the contender's name")
+    p.add_argument("--variant", type=_json, required=True, help='changes, e.g. {"precision": "bfloat16"}')
+    p.add_argument("--repeats", type=int, required=True)
+    _body_displacement(p)
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_performance_surrogate)
+
+    p = sub.add_parser("performance-report", help="performance.csv and the Pareto plot from the contenders' rows")
+    p.add_argument("--tables", type=Path, nargs="+", required=True, help="one CSV per contender")
+    p.add_argument("--main", required=True, help="the surrogate contender of the headline figures")
+    p.add_argument("--reference", required=True, help="the DEM reference contender")
+    p.add_argument("--packings", type=Path, nargs="*", help="packing folders (their settling time is reported)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--plot", type=Path, required=True)
+    p.add_argument("--title", default="run time against error")
+    p.set_defaults(func=cmd_performance_report)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from surrogate.errors import CheckpointError, TrainingDiverged
+
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except (*gcli.errors(), CheckpointError, TrainingDiverged) as exc:
+        print(f"graphdem {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+# Stage performance: run time against error. One job per contender, each alone on the machine
+# (threads = all cores, so no two timings overlap); the torch thread count is performance.threads.
+rule performance_dem:
+    input:
+        truth=timed_sims,
+        packings=timed_packings,
+    output:
+        "results/{scene}/performance/dem/{contender}.csv",
+    params:
+        variant=contender_json("dem"),
+        sims=timed_rows_json,
+        history=history_length,
+        repeats=stage_setting("performance", "repeats"),
+        body=body_displacement_arg,
+    threads: 64
+    log:
+        "results/{scene}/logs/performance/dem_{contender}.log",
+    benchmark:
+        "results/{scene}/benchmarks/performance/dem_{contender}.tsv"
+    shell:
+        "graphdem performance-dem --scene {wildcards.scene} --name {wildcards.contender} --variant {params.variant:q} "
+        "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth} "
+        "--history {params.history} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
+
+
+rule performance_surrogate:
+    input:
+        checkpoint="results/{scene}/model/best.pt",
+        truth=timed_sims,
+    output:
+        "results/{scene}/performance/surrogate/{contender}.csv",
+    params:
+        variant=contender_json("surrogate"),
+        runtime=runtime_json,
+        repeats=stage_setting("performance", "repeats"),
+        threads=stage_setting("performance", "threads"),
+        body=body_displacement_arg,
+    threads: 64
+    log:
+        "results/{scene}/logs/performance/surrogate_{contender}.log",
+    benchmark:
+        "results/{scene}/benchmarks/performance/surrogate_{contender}.tsv"
+    shell:
+        "graphdem performance-surrogate --name {wildcards.contender} --variant {params.variant:q} "
+        "--checkpoint {input.checkpoint} --data {input.truth} --runtime-json {params.runtime:q} "
+        "--threads {params.threads} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
+
+
+rule performance:
+    input:
+        tables=contender_tables,
+        packings=timed_packings,
+    output:
+        table=report("results/{scene}/performance.csv", caption="../report/performance.rst", category="performance"),
+        plot=report("results/{scene}/plots/pareto.png", caption="../report/performance.rst", category="performance"),
+    params:
+        main=stage_setting("performance", "main"),
+        reference=stage_setting("performance", "reference"),
+    log:
+        "results/{scene}/logs/performance.log",
+    benchmark:
+        "results/{scene}/benchmarks/performance.tsv"
+    shell:
+        "graphdem performance-report --tables {input.tables} --packings {input.packings} --main {params.main} "
+        "--reference {params.reference} --out {output.table} --plot {output.plot} "
+        "--title '{wildcards.scene}: run time against error' > {log} 2>&1"
