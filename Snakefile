@@ -31,6 +31,7 @@ include: "workflow/rules/rollout.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/stability.smk"
 include: "workflow/rules/performance.smk"
+include: "workflow/rules/physics.smk"
 
 
 rule all:

@@ -103,6 +103,13 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
+def cmd_physics(args) -> None:
+    from generators import h5md
+    trajectories = [h5md.read(p) for p in args.data]
+    table = scenes.get(args.scene).physics(trajectories, Path(args.out), Path(args.plot))
+    print(table.to_string(index=False))
+
+
 def add_commands(sub) -> None:
     """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
     names = scenes.names()
@@ -132,7 +139,8 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("convert", help="convert a raw engine output folder to H5MD")
-    p.add_argument("--raw", type=Path, required=True, help="a simulate stage's raw folder (its run.json names the scene)")
+    p.add_argument("--raw", type=Path, required=True,
+                   help="a simulate stage's raw folder (its run.json names the scene and the engine)")
     p.add_argument("--out", type=Path, required=True, help="H5MD file to write")
     p.set_defaults(func=cmd_convert)
 
@@ -147,6 +155,15 @@ def add_commands(sub) -> None:
     p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
     p.add_argument("--out", type=Path, required=True, help="CSV report")
     p.set_defaults(func=cmd_stability_dem)
+
+    p = sub.add_parser("physics", help="check a scene's DEM data against published physics (table and plot)",
+                       description="The scene's own physics check on its sims, e.g. the column collapse's runout "
+                                   "against the aspect ratio beside the published laws (docs/collapse-scene.md).")
+    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--data", type=Path, nargs="+", required=True, help="the scene's H5MD sims")
+    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.add_argument("--plot", type=Path, required=True, help="PNG to write")
+    p.set_defaults(func=cmd_physics)
 
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "

@@ -48,8 +48,6 @@ class Scene(ABC):
     engines: ClassVar[tuple[str, ...]]
     packing_keys: ClassVar[tuple[str, ...]]
     metrics: ClassVar[type]
-    #: the metric that stands for the scene in summaries (a name in metrics.names)
-    headline: ClassVar[str]
 
     # ---- sweep ---------------------------------------------------------------------------------
 
@@ -75,6 +73,7 @@ class Scene(ABC):
 
     def finish_sweep(self, rows: list[dict], cfg: dict) -> None:
         """Columns that depend on the whole sweep (added in place); default: none."""
+        return None
 
     def row_params(self, cfg: dict) -> dict:
         """The physical parameters every sweep row carries: the section less NOT_IN_ROWS."""
@@ -110,7 +109,15 @@ class Scene(ABC):
     # ---- checks --------------------------------------------------------------------------------
 
     def check(self, cfg: dict) -> None:
-        """Semantic checks of the resolved section (the schema has checked types and ranges)."""
+        """Semantic checks of the resolved section (the schema has checked types and ranges); default: none."""
+        return None
+
+    def physics(self, trajectories: list, out_csv, out_png):
+        """The scene's check of its DEM data against published physics (the physics stage): a table
+        written to ``out_csv`` and a plot to ``out_png``. Scenes without one refuse by name."""
+        from generators import scenes
+        have = [n for n, s in scenes.registry().items() if type(s).physics is not Scene.physics]
+        raise ValueError(f"the {self.name} scene has no physics check; scenes with one: {', '.join(have) or 'none'}")
 
     @property
     def kinematic_names(self) -> list[str]:

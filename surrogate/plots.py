@@ -13,8 +13,8 @@ import pandas as pd  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from generators.atomic import atomic_path  # noqa: E402
-from surrogate.metrics import units  # noqa: E402
 from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plane_section  # noqa: E402,F401
+from surrogate.metrics import units  # noqa: E402
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),

@@ -64,7 +64,8 @@ def write_data(path, setup: dem.Setup, title: str) -> None:
              "-0.5 0.5 zlo zhi" if setup.dim == 2 else f"{lower[2]:.10g} {upper[2]:.10g} zlo zhi",
              "", "Atoms # sphere", ""]
     z = np.zeros(len(p.x)) if setup.dim == 2 else p.x[:, 2]
-    lines += [f"{i + 1} {int(t) + 1} {2 * r:.10g} 1 {x:.10g} {y:.10g} {zz:.10g}" for i, ((x, y), zz, r, t) in enumerate(zip(p.x[:, :2], z, p.radius, p.species, strict=True))]
+    lines += [f"{i + 1} {int(t) + 1} {2 * r:.10g} 1 {x:.10g} {y:.10g} {zz:.10g}"
+              for i, ((x, y), zz, r, t) in enumerate(zip(p.x[:, :2], z, p.radius, p.species, strict=True))]
     if setup.velocity is not None and np.any(setup.velocity):
         v = np.zeros((len(p.x), 3))
         v[:, : setup.dim] = setup.velocity

@@ -253,7 +253,6 @@ class Meteorite(Scene):
         "max_overlap",
     )
     metrics = MeteoriteMetrics
-    headline = "Cra Dep"
 
     def packings(self, cfg: dict) -> list[dict]:
         """One bed, shared by every sim."""

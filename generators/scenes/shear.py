@@ -193,7 +193,6 @@ class Shear(Scene):
                     "restitution", "friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
                     "max_overlap")
     metrics = ShearMetrics
-    headline = "Failure Surface mean"
     log_scaled_properties = ("young",)
 
     def packings(self, cfg: dict) -> list[dict]:

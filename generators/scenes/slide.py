@@ -207,7 +207,6 @@ class Slide(Scene):
         "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed", "max_overlap",
     )
     metrics = SlideMetrics
-    headline = "Tongue Dis"
 
     def sweep_size(self, cfg: dict) -> int:
         return cfg["n_sims"]

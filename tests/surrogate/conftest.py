@@ -5,8 +5,7 @@ import json
 import pandas as pd
 import pytest
 
-from generators import config, convert, sweep
-from generators.lammps import slide as lammps_slide
+from generators import config, convert, engine, sweep
 from generators.scenes import slide
 from surrogate import dataset
 
@@ -20,10 +19,10 @@ def tiny_dataset(tmp_path_factory):
     table = sweep.build("slide", cfg)
     table.to_csv(root / "sweep.csv", index=False)
     packing = root / "packing"
-    lammps_slide.settle(slide.packing_params(cfg, 0), packing)
+    engine.prepare(slide.SCENE, "lammps", slide.SCENE.packing_params(cfg, 0), packing)
     for row in table.to_dict("records"):
-        lammps_slide.simulate(row, packing, root / "raw" / row["id"])
-        convert.convert("slide", root / "raw" / row["id"], root / "sims" / f"{row['id']}.h5")
+        engine.simulate(slide.SCENE, row, packing, root / "raw" / row["id"])
+        convert.convert(root / "raw" / row["id"], root / "sims" / f"{row['id']}.h5")
     stats = dataset.build(dataset.split_table(table, root / "sims"), root / "dataset", cfg["connectivity_radius"])
     model = {**cfg["model"], "history": 4}
     train = {**cfg["train"], "lr": 1e-3, "batch_size": 2, "epochs": 3, "patience": 3, "checkpoint_every": 2}

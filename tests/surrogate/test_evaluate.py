@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from generators import cli, h5md
-from surrogate import train
+from generators import h5md
+from surrogate import cli, train
 
 pytestmark = pytest.mark.engine
 

@@ -3,7 +3,7 @@
 import pandas as pd
 import pytest
 
-from surrogate import benchmark
+from surrogate import performance
 
 
 def contenders():
@@ -24,12 +24,12 @@ def contenders():
 
 
 def test_pareto_front_keeps_only_undominated_scored_contenders():
-    front = benchmark.pareto_front(contenders())
+    front = performance.pareto_front(contenders())
     assert list(front) == [True, True, False, True, False, False]
 
 
 def test_report_gives_speedups_and_break_even_substeps():
-    table = benchmark.report(contenders(), main="graphdem", reference="reference", settling_seconds=42.0)
+    table = performance.report(contenders(), main="graphdem", reference="reference", settling_seconds=42.0)
     main = table[table["main"]].iloc[0]
     assert main["speedup_vs_reference"] == pytest.approx(20.0)
     # the fastest DEM at least as accurate as the surrogate (MSE <= 1.0) is dt_x4, 2.5 s
@@ -42,27 +42,27 @@ def test_report_gives_speedups_and_break_even_substeps():
 
 def test_report_needs_the_reference():
     with pytest.raises(ValueError, match="DEM reference contender 'exact' is missing or blew up"):
-        benchmark.report(contenders(), main="graphdem", reference="exact", settling_seconds=None)
+        performance.report(contenders(), main="graphdem", reference="exact", settling_seconds=None)
 
 
 def test_dem_contender_settings_scale_the_step_and_the_stiffness():
     row = {"id": "s", "dt_safety": 0.01, "dt": None, "young": 1e9}
-    assert benchmark.dem_row(row, {"dt_factor": 4}) == {**row, "dt_safety": 0.04}
-    assert benchmark.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
+    assert performance.dem_row(row, {"dt_factor": 4}) == {**row, "dt_safety": 0.04}
+    assert performance.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
     with pytest.raises(ValueError, match=r"unknown keys \['dt'\]; allowed: dt_factor, stiffness_factor"):
-        benchmark.dem_row(row, {"dt": 1e-4})
+        performance.dem_row(row, {"dt": 1e-4})
     with pytest.raises(ValueError, match="must not fix an explicit dt"):
-        benchmark.dem_row({**row, "dt": 1e-5}, {"dt_factor": 2})
+        performance.dem_row({**row, "dt": 1e-5}, {"dt_factor": 2})
 
 
 def test_operation_count_matches_the_article_size_model_by_hand():
     model = {"latent": 128, "hidden": 128, "mlp_layers": 3, "history": 6, "embed": 16, "message_passing": 10}
     nodes, edges = 700, 700 * 20
-    plain = benchmark.gflop_per_step(model, 2, 0, nodes, edges, split=False)
+    plain = performance.gflop_per_step(model, 2, 0, nodes, edges, split=False)
     # per edge and updater: 384x128 + 128x128 + 128x128 multiply-adds, per node 256x128 + 2 x 128x128
     updater = edges * (384 + 128 + 128) * 128 + nodes * (256 + 128 + 128) * 128
     constructors = nodes * ((5 * 2 + 16 + 4) * 128 + 2 * 128 * 128) + edges * (3 * 128 + 2 * 128 * 128)
     generator = nodes * (2 * 128 * 128 + 128 * 2)
     assert plain == pytest.approx(2 * (10 * updater + constructors + generator) / 1e9)
-    split = benchmark.gflop_per_step(model, 2, 0, nodes, edges, split=True)
+    split = performance.gflop_per_step(model, 2, 0, nodes, edges, split=True)
     assert split == pytest.approx(plain - 2 * 10 * (edges * 256 * 128 - 2 * nodes * 128 * 128) / 1e9)

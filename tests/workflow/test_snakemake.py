@@ -37,7 +37,7 @@ def planned(proc) -> dict[str, int]:
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     wd = tmp_path_factory.mktemp("wf")
-    proc = snakemake(wd, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-c2")
+    proc = snakemake(wd, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-c2")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return wd
 
@@ -80,7 +80,7 @@ def test_surrogate_stage_outputs(workdir):
 def test_benchmark_stage_outputs(workdir):
     import pandas as pd
     res = workdir / "results" / "slide"
-    table = pd.read_csv(res / "benchmark.csv").set_index("contender")
+    table = pd.read_csv(res / "performance.csv").set_index("contender")
     # the reference rerun of the DEM reproduces the data bit for bit (one thread, same inputs)
     assert table.at["reference", "mse"] == 0.0 and table.at["reference", "acc_Max Ht"] == 100.0
     assert table.at["dt_x2", "dem_steps_per_frame"] == pytest.approx(table.at["reference", "dem_steps_per_frame"] / 2,

@@ -5,8 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from generators import config, convert, h5md, sweep
-from generators.lammps import meteorite as lammps_meteorite
+from generators import config, convert, engine, h5md, sweep
 from generators.scenes import meteorite
 
 pytestmark = pytest.mark.engine
@@ -16,11 +15,11 @@ pytestmark = pytest.mark.engine
 def tiny(tmp_path_factory):
     cfg = config.load({"scale": "ci", "meteorite": {"bed_depth": 30.0, "frames": 8}})["meteorite"]
     root = tmp_path_factory.mktemp("meteorite")
-    lammps_meteorite.settle(meteorite.packings(cfg)[0], root / "packing")
+    engine.prepare(meteorite.SCENE, "lammps", meteorite.SCENE.packings(cfg)[0], root / "packing")
     row = sweep.build("meteorite", cfg).iloc[0].to_dict()          # 30 degrees, 60 m/s
-    lammps_meteorite.simulate(row, root / "packing", root / "raw")
-    traj = h5md.read(convert.convert("meteorite", root / "raw", root / "sim.h5"))
-    return {"cfg": cfg, "row": row, "traj": traj, "bed": lammps_meteorite.read_packing(root / "packing")}
+    engine.simulate(meteorite.SCENE, row, root / "packing", root / "raw")
+    traj = h5md.read(convert.convert(root / "raw", root / "sim.h5"))
+    return {"cfg": cfg, "row": row, "traj": traj, "bed": engine.read_packing(root / "packing")}
 
 
 def test_count_constant_two_types_nothing_kinematic(tiny):
@@ -64,7 +63,7 @@ def test_bed_is_at_rest_before_contact_and_struck_after(tiny):
 def test_recording_starts_before_contact_and_the_path_is_aimed_at_the_bed_top(tiny):
     """Frame 0 is before contact, contact comes within the window, and at contact_frame the cluster's
     lowest point is at the height of the bed's top near the middle (to the gravity sag g t^2 / 2)."""
-    from surrogate.metrics import MeteoriteMetrics
+    from generators.scenes.meteorite import MeteoriteMetrics
     traj, row, bed = tiny["traj"], tiny["row"], tiny["bed"]
     metrics = MeteoriteMetrics.for_trajectory(traj)
     position = np.asarray(traj.position, float)

@@ -8,8 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from generators import convert, h5md, sweep
-from generators.lammps import slide as lammps_slide
+from generators import contact, convert, engine, h5md, sweep
 from generators.scenes import slide
 
 pytestmark = pytest.mark.engine
@@ -22,17 +21,16 @@ def tiny(tmp_path_factory):
     cfg = config.load({"scale": "ci", "slide": {
         "settle_time": 4.0, "frames": 8, "frame_interval": 0.1, "record_start": 0.0}})["slide"]
     root = tmp_path_factory.mktemp("slide")
-    params = slide.packing_params(cfg, 0)
+    params = slide.SCENE.packing_params(cfg, 0)
     packing = root / "packing"
-    lammps_slide.settle(params, packing)
+    engine.prepare(slide.SCENE, "lammps", params, packing)
     # One extra disc high above the plateau: airborne for the whole recorded window.
-    table = pd.read_csv(packing / lammps_slide.PACKING_FILE)
-    drop = {"id": table["id"].max() + 1, "species": slide.STABLE, "radius": cfg["radius"][0],
-            "x": 10.0, "y": DROP_HEIGHT}
-    pd.concat([table, pd.DataFrame([drop])]).to_csv(packing / lammps_slide.PACKING_FILE, index=False)
+    table = pd.read_csv(packing / engine.PACKING_FILE)
+    drop = {"species": slide.STABLE, "radius": cfg["radius"][0], "x": 10.0, "y": DROP_HEIGHT}
+    pd.concat([table, pd.DataFrame([drop])]).to_csv(packing / engine.PACKING_FILE, index=False)
     row = sweep.build("slide", cfg).iloc[0].to_dict()
-    lammps_slide.simulate(row, packing, root / "raw")
-    traj = h5md.read(convert.convert("slide", root / "raw", root / "sim.h5"))
+    engine.simulate(slide.SCENE, row, packing, root / "raw")
+    traj = h5md.read(convert.convert(root / "raw", root / "sim.h5"))
     return {"cfg": cfg, "row": row, "traj": traj, "table": table, "root": root, "packing": packing}
 
 
@@ -84,13 +82,13 @@ def test_trigger_makes_a_weak_layer(tiny):
 
 
 def _simulate_cli(row, packing, out):
-    return subprocess.run([sys.executable, "-m", "generators.cli", "simulate", "--scene", "slide",
+    return subprocess.run([sys.executable, "-m", "surrogate.cli", "simulate", "--scene", "slide",
                            "--sim", json.dumps(row), "--packing", str(packing), "--out", str(out)],
                           capture_output=True, text=True)
 
 
 def test_unstable_time_step_is_refused_with_both_numbers(tiny, tmp_path):
-    dt, limit, _ = slide.dem_step(tiny["cfg"], "x")
+    dt, limit, _ = contact.disc_time_step(tiny["cfg"], "x")
     row = dict(tiny["row"], dt=2 * limit)
     proc = _simulate_cli(row, tiny["packing"], tmp_path / "raw")
     assert proc.returncode == 1

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from generators import cli, h5md
+from generators import h5md
 from generators.solidgn import convert, safe_pickle
+from surrogate import cli
 
 SOURCE = Path(__file__).resolve().parents[4] / "shared" / "datasets" / "solidgn"
 

@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 
-from generators import config, convert, h5md, sweep
+from generators import config, convert, dem, engine, h5md, sweep
 from generators.scenes import shear
-from generators.yade import shear as yade_shear
 
 pytestmark = pytest.mark.engine
 
@@ -14,12 +13,12 @@ pytestmark = pytest.mark.engine
 def tiny(tmp_path_factory):
     cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 6}})["shear"]
     root = tmp_path_factory.mktemp("shear")
-    yade_shear.settle(shear.packings(cfg)[0], root / "packing")
+    engine.prepare(shear.SCENE, "yade", shear.SCENE.packings(cfg)[0], root / "packing")
     table = sweep.build("shear", cfg)
     row = table.iloc[-1].to_dict()                          # the stiffest modulus, the largest displacement
-    meta = yade_shear.simulate(row, root / "packing", root / "raw")
-    traj = h5md.read(convert.convert("shear", root / "raw", root / "sim.h5"))
-    return {"cfg": cfg, "row": row, "meta": meta, "traj": traj, "packing": yade_shear.read_packing(root / "packing")}
+    meta = engine.simulate(shear.SCENE, row, root / "packing", root / "raw")
+    traj = h5md.read(convert.convert(root / "raw", root / "sim.h5"))
+    return {"cfg": cfg, "row": row, "meta": meta, "traj": traj, "packing": engine.read_packing(root / "packing")}
 
 
 def test_count_constant_types_soil_and_box(tiny):
@@ -33,10 +32,10 @@ def test_count_constant_types_soil_and_box(tiny):
 def test_box_particles_follow_their_prescribed_motion_exactly(tiny):
     """Lower half: x0 + v t (v chosen so the last frame is at exactly the displacement); upper half: held."""
     traj, packing, meta = tiny["traj"], tiny["packing"], tiny["meta"]
-    lower = packing.lower
+    lower = packing.groups[shear.LOWER]
     upper = (packing.species == shear.BOX) & ~lower
     t = traj.time - traj.time[0]
-    expected = packing.x[lower][None] + np.outer(t, [meta["shear_speed"], 0.0, 0.0])[:, None, :]
+    expected = packing.x[lower][None] + np.outer(t, [traj.parameters["shear_speed"], 0.0, 0.0])[:, None, :]
     np.testing.assert_allclose(traj.position[:, lower], expected, rtol=0, atol=1e-7)      # float32 storage
     np.testing.assert_allclose(traj.position[:, upper], np.repeat(packing.x[upper][None], 6, axis=0), rtol=0, atol=1e-7)
     shift = traj.position[-1, lower, 0] - traj.position[0, lower, 0]
@@ -64,14 +63,14 @@ def test_modulus_is_a_log_scaled_property_and_time_step_follows_it(tiny):
 
 
 def test_yade_left_no_server_open(tiny):
-    assert tiny["meta"]["servers_closed"] == 2
-    assert tiny["meta"]["listening_sockets"] == []
+    assert tiny["meta"].run.notes["servers_closed"] == 2
+    assert tiny["meta"].run.notes["listening_sockets"] == []
 
 
 def test_a_pour_that_settles_below_the_box_height_is_refused(tiny):
     packing, cfg = tiny["packing"], tiny["cfg"]
-    settled_high = shear.Particles(packing.x + np.array([0.0, 0.0, cfg["box"][2]]), packing.radius,
-                                   packing.species, packing.lower)
+    settled_high = dem.Particles(packing.x + np.array([0.0, 0.0, cfg["box"][2]]), packing.radius,
+                                 packing.species, packing.groups)
     shear.check_filled(settled_high, cfg, "packing p")                          # reaches above H: accepted
     with pytest.raises(ValueError, match=r"packing p: the settled soil reaches z = .* below the box height"):
         shear.check_filled(packing.subset(packing.x[:, 2] < 0.5 * cfg["box"][2]), cfg, "packing p")

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from surrogate.metrics import ShearMetrics
+from generators.scenes.shear import ShearMetrics
 
 
 def setup():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from surrogate.metrics import MeteoriteMetrics
+from generators.scenes.meteorite import MeteoriteMetrics
 
 NAN = np.nan
 

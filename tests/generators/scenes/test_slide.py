@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from surrogate.metrics import SlideMetrics
+from generators.scenes.slide import SlideMetrics
 
 
 def trajectory():

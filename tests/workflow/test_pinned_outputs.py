@@ -1,0 +1,52 @@
+"""The ci-scale outputs of the slide, meteorite and shear scenes are pinned (tests/workflow/fingerprint.py):
+the sweep tables and packing keys are identical, every sim's H5MD positions bit-identical, and metrics.csv
+identical (Graph-DEM's rows to a relative 1e-6), to those made before the scene x engine redesign."""
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.workflow.fingerprint import fingerprint
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+PINNED = json.loads((Path(__file__).parent / "data" / "ci_outputs.json").read_text())
+MODEL = "graphdem"
+
+pytestmark = pytest.mark.engine
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    wd = tmp_path_factory.mktemp("pinned")
+    targets = [f"results/{scene}/metrics.csv" for scene in sorted(PINNED)]
+    proc = subprocess.run([SNAKEMAKE, "-c2", "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--config", "scale=ci",
+                           "--", *targets], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return wd / "results"
+
+
+def _same(got, want, relative: float) -> bool:
+    if isinstance(want, float) and isinstance(got, float):
+        return math.isclose(got, want, rel_tol=relative, abs_tol=0.0) or got == want
+    return got == want
+
+
+@pytest.mark.parametrize("scene", sorted(PINNED))
+def test_outputs_unchanged(results, scene):
+    got, want = fingerprint(results, scene), PINNED[scene]
+    assert got["sweep"] == want["sweep"]
+    assert got["packings"] == want["packings"]
+    assert got["positions"] == want["positions"]                     # bit for bit
+    assert len(got["metrics"]) == len(want["metrics"])
+    for row, pinned in zip(got["metrics"], want["metrics"], strict=True):
+        if pinned["metric"] == "seconds per frame":          # a wall time: measured, never pinned
+            assert row["metric"] == pinned["metric"] and row["mean_prediction"] > 0
+            continue
+        relative = 1e-6 if pinned["method"] == MODEL else 0.0
+        different = {k: (row.get(k), v) for k, v in pinned.items() if not _same(row.get(k), v, relative)}
+        assert not different, (pinned["method"], pinned["metric"], pinned["sim"], different)

@@ -1,0 +1,15 @@
+# Stage physics: a scene's DEM data checked against published physics, where the scene has such a check
+# (Scene.physics; e.g. the column collapse's runout law). Every sim of the sweep is used.
+rule physics:
+    input:
+        sims=all_sims,
+    output:
+        table="results/{scene}/physics.csv",
+        plot=report("results/{scene}/plots/physics.png", caption="../report/physics.rst", category="physics"),
+    log:
+        "results/{scene}/logs/physics.log",
+    benchmark:
+        "results/{scene}/benchmarks/physics.tsv"
+    shell:
+        "graphdem physics --scene {wildcards.scene} --data {input.sims} --out {output.table} --plot {output.plot} "
+        "> {log} 2>&1"
