@@ -4,30 +4,16 @@ identical (Graph-DEM's rows to a relative 1e-6), to those made before the scene 
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from tests.workflow.fingerprint import fingerprint
 
-ROOT = Path(__file__).resolve().parents[2]
-SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 PINNED = json.loads((Path(__file__).parent / "data" / "ci_outputs.json").read_text())
 MODEL = "graphdem"
 
 pytestmark = pytest.mark.engine
-
-
-@pytest.fixture(scope="module")
-def results(tmp_path_factory):
-    wd = tmp_path_factory.mktemp("pinned")
-    targets = [f"results/{scene}/metrics.csv" for scene in sorted(PINNED)]
-    proc = subprocess.run([SNAKEMAKE, "-c2", "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--config", "scale=ci",
-                           "--", *targets], capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return wd / "results"
 
 
 def _same(got, want, relative: float) -> bool:
@@ -37,8 +23,8 @@ def _same(got, want, relative: float) -> bool:
 
 
 @pytest.mark.parametrize("scene", sorted(PINNED))
-def test_outputs_unchanged(results, scene):
-    got, want = fingerprint(results, scene), PINNED[scene]
+def test_outputs_unchanged(ci_results, scene):
+    got, want = fingerprint(ci_results, scene), PINNED[scene]
     assert got["sweep"] == want["sweep"]
     assert got["packings"] == want["packings"]
     assert got["positions"] == want["positions"]                     # bit for bit

@@ -31,7 +31,7 @@ def test_count_constant_types_soil_and_box(tiny):
 
 def test_box_particles_follow_their_prescribed_motion_exactly(tiny):
     """Lower half: x0 + v t (v chosen so the last frame is at exactly the displacement); upper half: held."""
-    traj, packing, meta = tiny["traj"], tiny["packing"], tiny["meta"]
+    traj, packing = tiny["traj"], tiny["packing"]
     lower = packing.groups[shear.LOWER]
     upper = (packing.species == shear.BOX) & ~lower
     t = traj.time - traj.time[0]

@@ -1,0 +1,21 @@
+"""One ci-scale run of the slide, meteorite and shear scenes (the default ci config), shared by the
+workflow tests; two engine jobs run side by side under -c2 (two YADE processes for the shear)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+
+
+@pytest.fixture(scope="session")
+def ci_results(tmp_path_factory) -> Path:
+    wd = tmp_path_factory.mktemp("ci_scenes")
+    targets = [f"results/{scene}/metrics.csv" for scene in ("meteorite", "shear", "slide")]
+    proc = subprocess.run([SNAKEMAKE, "-c2", "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--config", "scale=ci",
+                           "--", *targets], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return wd / "results"
