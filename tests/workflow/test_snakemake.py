@@ -141,7 +141,7 @@ def test_changed_stiffness_resettles_the_packing(workdir):
 @pytest.mark.parametrize("override, expected", [
     ("slide={youngs: 5.0e9}", "unknown config key 'slide.youngs'; allowed keys under slide"),
     ("slide={frames: 2}", "config key 'slide.frames' = 2 is not allowed"),
-    ("slide={engine: matdem}", "'matdem' is not one of ['lammps']"),
+    ("slide={engine: matdem}", "'matdem' is not one of ['lammps', 'yade']"),
 ])
 def test_bad_config_stops_before_anything_runs(tmp_path, override, expected):
     proc = snakemake(tmp_path, TARGET, "-n", config=(override,))
