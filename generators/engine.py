@@ -45,11 +45,6 @@ def read_packing(packing_dir: Path) -> dem.Particles:
                          {g: table[g].to_numpy(bool) for g in groups})
 
 
-def _check(setup: dem.Setup, where: str, position: np.ndarray, radius: np.ndarray) -> None:
-    blowup.check_trajectory(where, position, radius, setup.kinematic, np.asarray(setup.lower),
-                            np.asarray(setup.upper), setup.max_overlap)
-
-
 def prepare(scene: Scene, engine: str, params: dict, out_dir: Path) -> record.PackingRecord:
     """Settle the loose packing of ``params`` in ``engine``; write packing.csv and run.json to ``out_dir``."""
     out_dir = Path(out_dir)
@@ -75,12 +70,13 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path) -> recor
     input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the sim, frame and cause."""
     out_dir = Path(out_dir)
     setup = scene.simulate_setup(row, read_packing(packing_dir))
-    engine = driver(row["engine"])
+    runner = driver(row["engine"])
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:
         tmp.mkdir()
-        frames, run = engine.record(setup, tmp)
-        _check(setup, setup.name, frames.position, frames.radius)
+        frames, run = runner.record(setup, tmp)
+        blowup.check_trajectory(setup.name, frames.position, frames.radius, setup.kinematic,
+                                np.asarray(setup.lower), np.asarray(setup.upper), setup.max_overlap)
         if setup.max_energy_gain is not None:
             if frames.kinetic_energy is None:
                 raise dem.UnsupportedSetup(f"{setup.name}: the {row['engine']} driver reports no kinetic energy, "
@@ -93,7 +89,7 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path) -> recor
             n_steps=schedule.start + schedule.every * (schedule.frames - 1),
             window_steps=schedule.every * (schedule.frames - 1), frame_interval=schedule.every * setup.dt,
             packing=str(packing_dir), box_lower=[float(v) for v in box_lower],
-            box_upper=[float(v) for v in box_upper], contact_model=engine.CONTACT_MODEL + _walls(setup),
+            box_upper=[float(v) for v in box_upper], contact_model=runner.CONTACT_MODEL + _walls(setup),
             parameters=scene.h5md_parameters(row, setup), properties=scene.properties(row),
             log_scaled_properties=list(scene.log_scaled_properties),
             kinetic_energy=None if frames.kinetic_energy is None else [float(e) for e in frames.kinetic_energy])

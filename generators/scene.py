@@ -93,6 +93,32 @@ class Scene(ABC):
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         """The recorded run of sweep row ``row`` from its settled packing."""
 
+    def contact(self, p: dict, kn: float, friction: float | None = None,
+                rolling_friction: float | None = None) -> dem.Contact:
+        """The section's contact model at normal stiffness ``kn`` (friction overridable, e.g. a weakened layer)."""
+        return dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
+                           friction=p["friction"] if friction is None else friction,
+                           rolling_friction=p.get("rolling_friction", 0.0) if rolling_friction is None
+                           else rolling_friction)
+
+    def setup(self, p: dict, name: str, particles: dem.Particles, step: tuple[float, float, float], bounds,
+              schedule, **extra) -> dem.Setup:
+        """A Setup of this scene from section or row ``p``: ``step`` is (dt, stable limit, kn), ``bounds``
+        (lower, upper) the domain, ``schedule(dt)`` the Settle or Record; ``extra`` the other Setup fields."""
+        dt, limit, kn = step
+        return dem.Setup(
+            name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
+            kinematic_species=self.kinematic_species, n_species=len(self.species), density=p["density"],
+            gravity=p["gravity"], contact=self.contact(p, kn), dt=dt, dt_limit=limit,
+            lower=np.asarray(bounds[0], float), upper=np.asarray(bounds[1], float), max_overlap=p["max_overlap"],
+            schedule=schedule(dt), **extra)
+
+    @staticmethod
+    def settling(p: dict, damping_kind: str, check_every: float):
+        """The schedule factory (dt -> Settle) of the section's settle_damping, settle_time and settle_speed."""
+        return lambda dt: dem.Settle(damping=p["settle_damping"], damping_kind=damping_kind, check_every=check_every,
+                                     max_time=p["settle_time"], speed=p["settle_speed"])
+
     # ---- data ----------------------------------------------------------------------------------
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict[str, Any]:
@@ -129,3 +155,12 @@ def check_range(section: str, key: str, value) -> None:
     from generators.config import ConfigError
     if isinstance(value, list) and len(value) == 2 and value[0] > value[1]:
         raise ConfigError(f"config key '{section}.{key}' = {value} must be [min, max] with min <= max")
+
+
+def trajectory_parameters(traj, names: tuple[str, ...], scene: str) -> list[float]:
+    """The H5MD /parameters ``names`` a scene's metrics need, as floats; refused by name where missing."""
+    missing = [k for k in names if k not in traj.parameters]
+    if missing:
+        raise ValueError(f"{scene} metrics need the parameters {missing} in the H5MD file's parameters; "
+                         f"files written by `graphdem convert` for the {scene} scene carry them")
+    return [float(traj.parameters[k]) for k in names]

@@ -9,6 +9,7 @@ particles and 3D scenes' box motions (the shear scene runs in YADE).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -17,15 +18,13 @@ from generators import blowup, dem
 from generators.lammps import deck, io, runner
 from generators.record import EngineRun
 
-ENGINE = "lammps"
 CONTACT_MODEL = deck.CONTACT_MODEL
 
 
-def _engine_run(run: runner.Run, log: Path) -> EngineRun:
+def _engine_run(run: EngineRun, log: Path) -> EngineRun:
+    """The run with LAMMPS' own loop time of its last run (the recorded window) and its step count."""
     loops = io.loop_times(log)
-    return EngineRun(engine=ENGINE, version=run.version, command=run.command, wall_time=run.wall_time,
-                     max_rss_mb=run.max_rss_mb, window_seconds=loops[-1][0] if loops else None,
-                     steps=sum(n for _, n in loops))
+    return dataclasses.replace(run, window_seconds=loops[-1][0] if loops else None, steps=sum(n for _, n in loops))
 
 
 def _blowup(setup: dem.Setup, exc: runner.LammpsError, start: int, every: int) -> blowup.BlowUp:

@@ -5,13 +5,12 @@ from __future__ import annotations
 import os
 import shlex
 import shutil
-import subprocess
 import tempfile
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from generators.lammps import io
+from generators.process import run_measured
+from generators.record import EngineRun
 
 EXECUTABLE_ENV = "GRAPHDEM_LMP"
 
@@ -24,13 +23,6 @@ class LammpsError(RuntimeError):
         super().__init__(message)
 
 
-@dataclass(frozen=True)
-class Run:
-    command: str
-    version: str
-    wall_time: float
-    max_rss_mb: float = float("nan")     # peak resident memory of the LAMMPS process
-
 
 def executable() -> str:
     exe = os.environ.get(EXECUTABLE_ENV, "lmp")
@@ -42,23 +34,21 @@ def executable() -> str:
     return path
 
 
-def run(text: str, workdir: Path, log_name: str = "log.lammps") -> Run:
-    """Write ``text`` into ``workdir`` as in.lammps and run it there, single-threaded."""
+def run(text: str, workdir: Path, log_name: str = "log.lammps") -> EngineRun:
+    """Write ``text`` into ``workdir`` as in.lammps and run it there, single-threaded; the run's command,
+    version, wall time and peak memory (the driver adds the window timing and step count)."""
     workdir = Path(workdir)
     (workdir / "in.lammps").write_text(text)
     cmd = [executable(), "-in", "in.lammps", "-log", log_name, "-screen", "none", "-nocite"]
     env = dict(os.environ, OMP_NUM_THREADS="1")
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        start = time.perf_counter()
-        proc = subprocess.Popen(cmd, cwd=workdir, env=env, stdout=out, stderr=err, text=True)
-        _, status, usage = os.wait4(proc.pid, 0)          # this child's own peak memory, not the session's
-        wall = time.perf_counter() - start
-        proc.returncode = os.waitstatus_to_exitcode(status)
+        code, wall, rss = run_measured(cmd, workdir, env, out, err)
         out.seek(0)
         err.seek(0)
         stdout, stderr = out.read(), err.read()
     log = workdir / log_name
-    if proc.returncode != 0:
+    if code != 0:
         message = io.error_message(log, stderr + stdout) or stderr[-500:]
         raise LammpsError(f"LAMMPS failed ({message})", io.last_step(log))
-    return Run(command=shlex.join(cmd), version=io.version(log), wall_time=wall, max_rss_mb=usage.ru_maxrss / 1024)
+    return EngineRun(engine="lammps", version=io.version(log), command=shlex.join(cmd), wall_time=wall,
+                     max_rss_mb=rss)

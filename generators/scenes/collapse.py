@@ -24,7 +24,7 @@ import pandas as pd
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, check_range
+from generators.scene import Scene, check_range, trajectory_parameters
 
 FLOOR, GRAIN = 0, 1
 SETTLE_CHECK = 0.02       # s of physical time between two checks of the settling speed
@@ -102,13 +102,8 @@ class CollapseMetrics:
 
     @classmethod
     def for_trajectory(cls, traj, body_displacement: float | None = None) -> CollapseMetrics:
-        p = traj.parameters
-        missing = [k for k in ("column_width", "floor_radius") if k not in p]
-        if missing:
-            raise ValueError(f"collapse metrics need the parameters {missing} in the H5MD file's parameters; "
-                             "files written by `graphdem convert` for the collapse scene carry them")
-        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.radius, float), float(p["column_width"]),
-                   2.0 * float(p["floor_radius"]))
+        width, floor_radius = trajectory_parameters(traj, ("column_width", "floor_radius"), "collapse")
+        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.radius, float), width, 2.0 * floor_radius)
 
     def __call__(self, position: np.ndarray) -> dict[str, np.ndarray]:
         grains = ~self.kinematic
@@ -155,17 +150,6 @@ class CollapseMetrics:
         return {"Profile dev": dev}
 
 
-def _setup(p: dict, name: str, particles: dem.Particles, upper: np.ndarray, walls, schedule, **extra) -> dem.Setup:
-    dt, limit, kn = contact.disc_time_step(p, where=name)
-    return dem.Setup(
-        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
-        kinematic_species=(FLOOR,), n_species=2, density=p["density"], gravity=p["gravity"],
-        contact=dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
-                            friction=p["friction"], rolling_friction=p["rolling_friction"]),
-        dt=dt, dt_limit=limit, lower=np.zeros(2), upper=upper, max_overlap=p["max_overlap"],
-        schedule=schedule(dt), walls=walls, **extra)
-
-
 class Collapse(Scene):
     name = "collapse"
     dim = 2
@@ -204,10 +188,10 @@ class Collapse(Scene):
         upper = np.array([2.0 * width, height])
         seed = [params["seed"], int(round(1000 * params["aspect"]))]
         particles = floor_particles(params, upper[0]).concat(loose_column(params, params["aspect"], seed))
-        return _setup(params, f"collapse column a = {params['aspect']:g}", particles, upper,
-                      (dem.PlanarWall(0, 0.0, width),), lambda dt: dem.Settle(
-                          damping=params["settle_damping"], damping_kind="viscous", check_every=SETTLE_CHECK,
-                          max_time=params["settle_time"], speed=params["settle_speed"]))
+        name = f"collapse column a = {params['aspect']:g}"
+        return self.setup(params, name, particles, contact.disc_time_step(params, name), (np.zeros(2), upper),
+                          self.settling(params, "viscous", SETTLE_CHECK),
+                          walls=(dem.PlanarWall(0, 0.0, width),))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         """The gate removed: the column (on a floor extended over the whole domain, closed by an end wall far
@@ -219,8 +203,9 @@ class Collapse(Scene):
         def record(dt: float) -> dem.Record:
             return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
 
-        return _setup(row, row["id"], particles, upper, (dem.PlanarWall(0, 0.0, float(upper[0])),), record,
-                      max_energy_gain=row["max_energy_gain"])
+        return self.setup(row, row["id"], particles, contact.disc_time_step(row, row["id"]), (np.zeros(2), upper),
+                          record, walls=(dem.PlanarWall(0, 0.0, float(upper[0])),),
+                          max_energy_gain=row["max_energy_gain"])
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         return {"floor_top": floor_top(row)}

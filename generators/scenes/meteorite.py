@@ -106,7 +106,6 @@ def place_meteorite(row: dict, bed: dem.Particles) -> tuple[dem.Particles, np.nd
                           np.concatenate([bed.species, np.full(len(xy), METEORITE)])), velocity)
 
 
-
 @dataclass
 class MeteoriteMetrics:
     """Crater and splash metrics of one trajectory, computed alike for truth and prediction.
@@ -223,17 +222,13 @@ class MeteoriteMetrics:
         return {}
 
 
-def _setup(p: dict, name: str, particles: dem.Particles, schedule, **extra) -> dem.Setup:
-    dt, limit, kn = contact.disc_time_step(p, where=name)
-    width, _ = p["domain"]
-    return dem.Setup(
-        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
-        kinematic_species=(), n_species=2, density=p["density"], gravity=p["gravity"],
-        contact=dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
-                            friction=p["friction"], rolling_friction=p["rolling_friction"]),
-        dt=dt, dt_limit=limit, lower=np.zeros(2), upper=np.asarray(p["domain"], float),
-        max_overlap=p["max_overlap"], schedule=schedule(dt),
-        walls=(dem.PlanarWall(0, 0.0, width), dem.PlanarWall(1, 0.0, None)), **extra)
+def _bounds(p: dict) -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros(2), np.asarray(p["domain"], float)
+
+
+def _walls(p: dict) -> tuple[dem.PlanarWall, ...]:
+    """Fixed planar walls at both sides and at the bottom of the domain."""
+    return dem.PlanarWall(0, 0.0, p["domain"][0]), dem.PlanarWall(1, 0.0, None)
 
 
 def _grid(lo: float, hi: float, n: int) -> list[float]:
@@ -273,9 +268,8 @@ class Meteorite(Scene):
 
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_bed(params, seed=[params["seed"], 2000 + params["packing_index"]])
-        return _setup(params, "meteorite", loose, lambda dt: dem.Settle(
-            damping=params["settle_damping"], damping_kind="viscous", check_every=SETTLE_CHECK,
-            max_time=params["settle_time"], speed=params["settle_speed"]))
+        return self.setup(params, "meteorite", loose, contact.disc_time_step(params, "meteorite"), _bounds(params),
+                          self.settling(params, "viscous", SETTLE_CHECK), walls=_walls(params))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         particles, velocity = place_meteorite(row, packing)
@@ -285,7 +279,8 @@ class Meteorite(Scene):
         def record(dt: float) -> dem.Record:
             return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
 
-        return _setup(row, row["id"], particles, record, velocity=initial, max_energy_gain=row["max_energy_gain"])
+        return self.setup(row, row["id"], particles, contact.disc_time_step(row, row["id"]), _bounds(row), record,
+                          velocity=initial, max_energy_gain=row["max_energy_gain"], walls=_walls(row))
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         launch = setup.velocity[setup.particles.species == METEORITE][0]

@@ -20,7 +20,7 @@ import numpy as np
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene
+from generators.scene import Scene, trajectory_parameters
 
 BOX, SOIL = 0, 1
 LOWER = "lower"            # the packing's group of box spheres in the moving lower half
@@ -128,13 +128,8 @@ class ShearMetrics:
 
     @classmethod
     def for_trajectory(cls, traj, body_displacement: float | None = None) -> ShearMetrics:
-        p = traj.parameters
-        missing = [k for k in ("split_height", "failure_band") if k not in p]
-        if missing:
-            raise ValueError(f"shear metrics need the parameters {missing} in the H5MD file's parameters; "
-                             "files written by `graphdem convert` for the shear scene carry them")
-        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.position[0, :, 2], float),
-                   float(p["split_height"]), float(p["failure_band"]))
+        split, band = trajectory_parameters(traj, ("split_height", "failure_band"), "shear")
+        return cls(np.asarray(traj.kinematic, bool), np.asarray(traj.position[0, :, 2], float), split, band)
 
     def members(self) -> dict[str, np.ndarray]:
         soil, z, zs = ~self.kinematic, self.height0, self.split_height
@@ -170,17 +165,6 @@ def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
     kn = cfg["young"] * cfg["radius"][0]
     limit = contact.stable_time_step(contact.sphere_mass(cfg["density"], cfg["radius"][0]), kn)
     return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
-
-
-def _setup(p: dict, name: str, particles: dem.Particles, bounds, schedule, **extra) -> dem.Setup:
-    dt, limit, kn = dem_step(p, where=name)
-    return dem.Setup(
-        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
-        kinematic_species=(BOX,), n_species=2, density=p["density"], gravity=p["gravity"],
-        contact=dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
-                            friction=p["friction"]),
-        dt=dt, dt_limit=limit, lower=bounds[0], upper=bounds[1], max_overlap=p["max_overlap"],
-        schedule=schedule(dt), **extra)
 
 
 class Shear(Scene):
@@ -222,10 +206,9 @@ class Shear(Scene):
 
     def settle_setup(self, params: dict) -> dem.Setup:
         """The loose soil poured into the box (walls extended upwards)."""
-        return _setup(params, f"packing E = {params['young']:g} Pa", loose_packing(params), domain(params, 0.0),
-                      lambda dt: dem.Settle(damping=params["settle_damping"], damping_kind="local",
-                                            check_every=SETTLE_CHECK, max_time=params["settle_time"],
-                                            speed=params["settle_speed"]))
+        name = f"packing E = {params['young']:g} Pa"
+        return self.setup(params, name, loose_packing(params), dem_step(params, name), domain(params, 0.0),
+                          self.settling(params, "local", SETTLE_CHECK))
 
     def settled(self, params: dict, particles: dem.Particles, where: str) -> dem.Particles:
         """The settled pour, refused if under-filled, trimmed at the box height."""
@@ -238,11 +221,12 @@ class Shear(Scene):
             interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
             return dem.Record(start=0, every=max(1, int(round(interval / dt))), frames=row["frames"])
 
-        dt = dem_step(row, where=row["id"])[0]
+        step = dem_step(row, where=row["id"])
+        dt = step[0]
         every = record(dt).every
         speed = row["displacement"] / (every * dt * (row["frames"] - 1))
         box_lower, box_upper = domain(row, row["domain_displacement"])
-        return _setup(row, row["id"], packing, domain(row, row["displacement"]), record,
+        return self.setup(row, row["id"], packing, step, domain(row, row["displacement"]), record,
                       motions=(dem.Motion(LOWER, (speed, 0.0, 0.0)),), box_lower=box_lower, box_upper=box_upper)
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:

@@ -98,7 +98,6 @@ def assign_layers(particles: dem.Particles, weak_base: float, weak_thickness: fl
     return species
 
 
-
 @dataclass
 class SlideMetrics:
     """Landslide body metrics of one trajectory.
@@ -179,19 +178,8 @@ class SlideMetrics:
         return {"Dis": total, "Dis mean": mean}
 
 
-def _contact(p: dict, kn: float, friction: float, rolling_friction: float) -> dem.Contact:
-    return dem.Contact(young=p["young"], kn=kn, kt_over_kn=p["kt_over_kn"], restitution=p["restitution"],
-                       friction=friction, rolling_friction=rolling_friction)
-
-
-def _setup(p: dict, name: str, particles: dem.Particles, schedule, **extra) -> dem.Setup:
-    dt, limit, kn = contact.disc_time_step(p, where=name)
-    return dem.Setup(
-        name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
-        kinematic_species=(BEDROCK,), n_species=3, density=p["density"], gravity=p["gravity"],
-        contact=_contact(p, kn, p["friction"], p["rolling_friction"]), dt=dt, dt_limit=limit,
-        lower=np.zeros(2), upper=np.asarray(p["domain"], float), max_overlap=p["max_overlap"],
-        schedule=schedule(dt), **extra)
+def _bounds(p: dict) -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros(2), np.asarray(p["domain"], float)
 
 
 class Slide(Scene):
@@ -226,9 +214,8 @@ class Slide(Scene):
 
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_packing(params, seed=[params["seed"], 1000 + params["packing_index"]])
-        return _setup(params, "slide", loose, lambda dt: dem.Settle(
-            damping=params["settle_damping"], damping_kind="viscous", check_every=SETTLE_CHECK,
-            max_time=params["settle_time"], speed=params["settle_speed"]))
+        return self.setup(params, "slide", loose, contact.disc_time_step(params, "slide"), _bounds(params),
+                          self.settling(params, "viscous", SETTLE_CHECK))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         """The trigger: the weak layer's species gets its lowered friction; frame 0 is recorded
@@ -241,9 +228,10 @@ class Slide(Scene):
             return dem.Record(start=every * int(round(row["record_start"] / (every * dt))), every=every,
                               frames=row["frames"])
 
-        kn = contact.disc_time_step(row, where=row["id"])[2]
-        return _setup(row, row["id"], particles, record, max_energy_gain=row["max_energy_gain"],
-                      species_contacts={WEAK: _contact(row, kn, row["weak_friction"], row["weak_rolling_friction"])})
+        step = contact.disc_time_step(row, where=row["id"])
+        weak = self.contact(row, step[2], row["weak_friction"], row["weak_rolling_friction"])
+        return self.setup(row, row["id"], particles, step, _bounds(row), record,
+                          max_energy_gain=row["max_energy_gain"], species_contacts={WEAK: weak})
 
     def check(self, cfg: dict) -> None:
         for key in ("weak_base", "weak_thickness", "weak_dip", "weak_friction"):

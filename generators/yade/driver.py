@@ -12,6 +12,7 @@ contact overrides (the 2D scenes run in LAMMPS).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,6 @@ from generators import contact, dem
 from generators.record import EngineRun
 from generators.yade import runner
 
-ENGINE = "yade"
 CONTACT_MODEL = "linear spring-dashpot, Coulomb friction (YADE ViscElMat, Law2_ScGeom_ViscElPhys_Basic)"
 FRAMES = "frames.npz"
 
@@ -47,14 +47,15 @@ def _job(setup: dem.Setup) -> dict:
     return job
 
 
-def _engine_run(run: runner.Run, setup: dem.Setup, window_seconds: float | None) -> EngineRun:
-    left = run.report.get("listening_at_start", []) + run.report.get("listening_sockets", [])
+def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None) -> EngineRun:
+    """The run with its window timing and step count; refused if YADE kept a listening socket."""
+    report = run.notes
+    left = report.get("listening_at_start", []) + report.get("listening_sockets", [])
     if left:
         raise runner.YadeError(f"{setup.name}: YADE held listening sockets {left} during the run")
-    return EngineRun(engine=ENGINE, version=run.version, command=run.command, wall_time=run.wall_time,
-                     max_rss_mb=run.max_rss_mb, window_seconds=window_seconds, steps=int(run.report["iterations"]),
-                     notes={"servers_closed": run.report.get("servers_closed"),
-                            "listening_sockets": run.report.get("listening_sockets")})
+    return dataclasses.replace(run, window_seconds=window_seconds, steps=int(report["iterations"]),
+                               notes={"servers_closed": report.get("servers_closed"),
+                                      "listening_sockets": report.get("listening_sockets")})
 
 
 def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:

@@ -9,12 +9,13 @@ import re
 import shlex
 import shutil
 import subprocess
-import time
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
+from generators.process import run_measured
+from generators.record import EngineRun
 
 EXECUTABLE_ENV = "GRAPHDEM_YADE"
 SCRIPT = "graphdem_yade.py"
@@ -23,14 +24,6 @@ SCRIPT = "graphdem_yade.py"
 class YadeError(RuntimeError):
     """YADE exited with an error; the message holds the end of its log."""
 
-
-@dataclass(frozen=True)
-class Run:
-    command: str
-    version: str
-    wall_time: float
-    max_rss_mb: float
-    report: dict            # the script's own report: servers closed, listening sockets left, iterations
 
 
 def executable() -> str:
@@ -54,7 +47,7 @@ def _version(path: str) -> str:
     return match.group(1) if match else "unknown"
 
 
-def run(job: dict, workdir: Path, name: str) -> tuple[dict, Run]:
+def run(job: dict, workdir: Path, name: str) -> tuple[dict, EngineRun]:
     """Write ``job`` to workdir/<name>.json, run the script on it, return its arrays and the run."""
     workdir = Path(workdir).resolve()        # yade runs inside workdir: every path it is given is absolute
     script = workdir / SCRIPT
@@ -67,15 +60,12 @@ def run(job: dict, workdir: Path, name: str) -> tuple[dict, Run]:
     env.update(OMP_NUM_THREADS="1", DISPLAY="")
     log = workdir / f"{name}.log"
     with open(log, "w") as fh:
-        start = time.perf_counter()
-        proc = subprocess.Popen(cmd, cwd=workdir, env=env, stdout=fh, stderr=subprocess.STDOUT, text=True)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - start
-    code = os.waitstatus_to_exitcode(status)
+        code, wall, rss = run_measured(cmd, workdir, env, fh, subprocess.STDOUT)
     if code != 0 or not out.is_file():
         tail = log.read_text()[-1500:]
         raise YadeError(f"YADE {name} run failed with exit status {code} in {workdir}: ...{tail}")
     with np.load(out) as data:
         arrays = {k: data[k] for k in data.files}
     report = json.loads(Path(str(out) + ".json").read_text())
-    return arrays, Run(shlex.join(cmd), version(), wall, usage.ru_maxrss / 1024, report)
+    return arrays, EngineRun(engine="yade", version=version(), command=shlex.join(cmd), wall_time=wall,
+                             max_rss_mb=rss, notes=report)
