@@ -1,20 +1,9 @@
-"""Settled packings shared by sims: which parameters make one, and its content key."""
+"""Settled packings shared by sims: the content key of a packing's parameters (Scene.packing_params)."""
 
 from __future__ import annotations
 
 import hashlib
 import json
-
-
-def packing_params(cfg: dict, keys: tuple[str, ...], index: int | None = None, **fixed) -> dict:
-    """The parameters ``keys`` of ``cfg`` that shape a settled packing, its seed, ``index`` (when the
-    scene has several packings) and any ``fixed`` value (e.g. the modulus a packing is settled at)."""
-    params = {k: cfg[k] for k in keys}
-    params.update(fixed)
-    params["seed"] = int(cfg["seed"])
-    if index is not None:
-        params["packing_index"] = int(index)
-    return params
 
 
 def packing_key(params: dict) -> str:

@@ -8,9 +8,9 @@ them; every stage iterates the registry and no other file names a scene.
 What a scene provides:
 
 - identity: ``name``, ``dim``, ``species`` (id -> name), ``kinematic_species``, ``engines`` it runs on;
-- the sweep: ``packing_keys`` (config keys that shape a settled packing; every other physical key of
-  the section goes into each sweep row), :meth:`sweep_size` and :meth:`draw` (the swept values of sim
-  ``i``), :meth:`packings`;
+- the sweep: :meth:`sweep_size` and :meth:`draw` (the swept values of sim ``i``; every other physical
+  key of the section goes into each sweep row), :meth:`packings` (whose parameters are the keys
+  :meth:`settle_setup` reads, derived by :meth:`packing_params`);
 - engine-neutral descriptions (generators/dem.py): :meth:`settle_setup` (prepare),
   :meth:`simulate_setup` (simulate), and :meth:`settled` (what the scene keeps of a settled pour);
 - data: :meth:`h5md_parameters` and :meth:`properties` (per-particle properties f_i) of a sim;
@@ -27,15 +27,35 @@ from typing import Any, ClassVar
 import numpy as np
 
 from generators import dem
-from generators.packing import packing_key, packing_params
+from generators.packing import packing_key
 
 # Keys of a scene section that never enter a sweep row: sweep and sizes, surrogate settings, and the
 # settling of the packing (which only the packing key carries).
 NOT_IN_ROWS = frozenset({
     "seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time", "settle_damping",
     "settle_speed", "model", "train", "runtime", "evaluate", "performance", "stability", "scales"})
+# Keys no settled packing depends on (the sweep, sizes and surrogate settings).
+NOT_IN_PACKINGS = frozenset({"split", "sweep", "n_sims", "n_packings", "connectivity_radius", "model", "train",
+                             "runtime", "evaluate", "performance", "stability", "scales"})
 # Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
 SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability")
+
+
+class _Reader(dict):
+    """A dict that remembers which keys were read (how a scene's packing parameters are derived)."""
+
+    def __init__(self, values: dict):
+        super().__init__(values)
+        self.read: set[str] = set()
+
+    def __getitem__(self, key):
+        self.read.add(key)
+        return super().__getitem__(key)
+
+    def get(self, key, default=None):
+        if key in self:
+            self.read.add(key)
+        return super().get(key, default)
 
 
 class Scene(ABC):
@@ -46,13 +66,20 @@ class Scene(ABC):
     species: ClassVar[dict[int, str]]
     kinematic_species: ClassVar[tuple[int, ...]]
     engines: ClassVar[tuple[str, ...]]
-    packing_keys: ClassVar[tuple[str, ...]]
     metrics: ClassVar[type]
 
     # ---- sweep ---------------------------------------------------------------------------------
 
     def packing_params(self, cfg: dict, index: int | None = None, **fixed) -> dict:
-        return packing_params(cfg, self.packing_keys, index, **fixed)
+        """The parameters of one settled packing: exactly the keys of the section (plus ``fixed`` values,
+        the seed and ``index``) that :meth:`settle_setup` reads. Derived, not listed: a key the settling
+        starts to read becomes part of the packing's content key by itself."""
+        full = {**{k: v for k, v in cfg.items() if k not in NOT_IN_PACKINGS}, **fixed, "seed": int(cfg["seed"])}
+        if index is not None:
+            full["packing_index"] = int(index)
+        reader = _Reader(full)
+        self.settled(reader, self.settle_setup(reader).particles, "packing")
+        return {k: full[k] for k in full if k in reader.read}
 
     def packings(self, cfg: dict) -> list[dict]:
         """Every packing the sweep uses (each settled once by the prepare stage); default:

@@ -156,9 +156,6 @@ class Collapse(Scene):
     species = {FLOOR: "floor", GRAIN: "grain"}
     kinematic_species = (FLOOR,)
     engines = ("lammps",)
-    packing_keys = ("gravity", "radius", "floor_radius", "column_width", "density", "young", "kt_over_kn",
-                    "restitution", "friction", "rolling_friction", "dt_safety", "dt", "settle_time",
-                    "settle_damping", "settle_speed", "max_overlap")
     metrics = CollapseMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

@@ -241,12 +241,6 @@ class Meteorite(Scene):
     species = {GROUND: "ground", METEORITE: "meteorite"}
     kinematic_species = ()
     engines = ("lammps",)
-    # Parameters that shape the settled bed: a change in any of them makes a new packing.
-    packing_keys = (
-        "domain", "gravity", "radius", "bed_depth", "density", "young", "kt_over_kn", "restitution",
-        "friction", "rolling_friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
-        "max_overlap",
-    )
     metrics = MeteoriteMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

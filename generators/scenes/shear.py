@@ -173,9 +173,6 @@ class Shear(Scene):
     species = {BOX: "box", SOIL: "soil"}
     kinematic_species = (BOX,)
     engines = ("yade",)
-    packing_keys = ("box", "gravity", "radius", "wall_radius", "wall_spacing", "density", "kt_over_kn",
-                    "restitution", "friction", "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed",
-                    "max_overlap")
     metrics = ShearMetrics
     log_scaled_properties = ("young",)
 

@@ -188,12 +188,6 @@ class Slide(Scene):
     species = {BEDROCK: "bedrock", STABLE: "stable soil", WEAK: "sliding-prone soil"}
     kinematic_species = (BEDROCK,)
     engines = ("lammps",)
-    # Parameters that shape the settled packing: a change in any of them makes a new packing.
-    packing_keys = (
-        "domain", "gravity", "bedrock_profile", "soil_surface", "bedrock_radius", "radius",
-        "density", "young", "kt_over_kn", "restitution", "friction", "rolling_friction",
-        "dt_safety", "dt", "settle_time", "settle_damping", "settle_speed", "max_overlap",
-    )
     metrics = SlideMetrics
 
     def sweep_size(self, cfg: dict) -> int:
