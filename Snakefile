@@ -8,6 +8,8 @@
 #   snakemake -c2 results/collapse/metrics.csv                     # the granular column collapse
 #   snakemake -c2 results/slide/performance.csv                    # run time against error
 #   snakemake -c2 results/slide/stability.csv                      # stress tests (docs/performance.md)
+#   snakemake -c2 results/crosscheck.csv                           # LAMMPS against YADE (docs/crosscheck.md)
+#   snakemake -c2 results/crosscheck/slide_transfer.csv            # the model scored on the other engine
 #   snakemake -c2 results/slide_samer/metrics.csv --config solidgn_root=/path/to/solidgn   # Table 6
 #
 # Defaults are package data: generators/defaults/default.yaml and, per scene, generators/scenes/<scene>.yaml
@@ -32,6 +34,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/stability.smk"
 include: "workflow/rules/performance.smk"
 include: "workflow/rules/physics.smk"
+include: "workflow/rules/crosscheck.smk"
 
 
 rule all:

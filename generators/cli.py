@@ -1,5 +1,6 @@
 """The generators' stages on the `graphdem` command line: config, sweep, prepare, simulate, convert,
-inspect, import-solidgn and stability-dem (surrogate/cli.py adds the surrogate's and runs them all).
+inspect, import-solidgn, stability-dem, physics, crosscheck and transfer (surrogate/cli.py adds the
+surrogate's and runs them all).
 
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason
 (naming the file, sim, frame or config key) when something is wrong.
@@ -103,6 +104,44 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
+def _engine_files(items: list[str]) -> dict[str, list[Path]]:
+    """ENGINE=PATH... arguments (repeated per engine) as engine -> H5MD files."""
+    out: dict[str, list[Path]] = {}
+    for item in items:
+        engine, sep, path = item.partition("=")
+        if not sep or engine not in ("lammps", "yade"):
+            raise SystemExit(f"graphdem crosscheck: --sims {item!r}: expected ENGINE=FILE.h5, ENGINE lammps or yade")
+        out.setdefault(engine, []).append(Path(path))
+    return out
+
+
+def cmd_crosscheck(args) -> None:
+    import pandas as pd
+
+    from generators import crosscheck
+    from generators.atomic import atomic_path
+    if args.combine:
+        table = pd.concat([pd.read_csv(p) for p in args.combine], ignore_index=True)
+    elif args.scene is None or not args.sims:
+        raise SystemExit("graphdem crosscheck: give --scene and --sims ENGINE=FILE.h5 ..., or --combine TABLES")
+    else:
+        table = crosscheck.compare(args.scene, _engine_files(args.sims), args.tolerance, args.body_displacement)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(table.to_string(index=False))
+
+
+def cmd_transfer(args) -> None:
+    import pandas as pd
+
+    from generators import crosscheck
+    from generators.atomic import atomic_path
+    table = crosscheck.transfer(pd.read_csv(args.same), pd.read_csv(args.other), args.trained_on, args.other_engine)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(table.to_string(index=False))
+
+
 def cmd_physics(args) -> None:
     from generators import h5md
     trajectories = [h5md.read(p) for p in args.data]
@@ -164,6 +203,30 @@ def add_commands(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.add_argument("--plot", type=Path, required=True, help="PNG to write")
     p.set_defaults(func=cmd_physics)
+
+    p = sub.add_parser("crosscheck", help="compare a scene's metrics over the same sims run in LAMMPS and in YADE",
+                       description="One row per scene metric (its value at each sim's last frame): both engines' "
+                                   "mean and standard deviation over the sims, their relative difference and "
+                                   "pass/fail against the larger of --tolerance and the combined standard error "
+                                   "(docs/crosscheck.md). With --combine, stack finished tables instead.")
+    p.add_argument("--scene", choices=names, help="the scene (with --sims)")
+    p.add_argument("--sims", nargs="+", metavar="ENGINE=FILE.h5", help="each engine's H5MD sims, e.g. lammps=a.h5")
+    p.add_argument("--tolerance", type=float, default=0.05, help="relative tolerance on each metric's mean")
+    p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
+    p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")
+    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.set_defaults(func=cmd_crosscheck)
+
+    p = sub.add_parser("transfer", help="a model's rollout MSE on its own engine's test sims beside the other's",
+                       description="Stack two `graphdem evaluate` tables of one checkpoint: on the test sims of the "
+                                   "engine it was trained on (--same) and on the same rows run in the other engine "
+                                   "(--other).")
+    p.add_argument("--same", type=Path, required=True, help="metrics.csv on the training engine's test sims")
+    p.add_argument("--other", type=Path, required=True, help="metrics.csv on the other engine's test sims")
+    p.add_argument("--trained-on", choices=("lammps", "yade"), required=True)
+    p.add_argument("--other-engine", choices=("lammps", "yade"), required=True)
+    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.set_defaults(func=cmd_transfer)
 
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "

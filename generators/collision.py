@@ -25,12 +25,13 @@ def collision_setup(c: dem.Contact, radius: float, density: float, dim: int, dt:
     x[:, 0] = (-1.05 * radius, 1.05 * radius)
     velocity = np.zeros((2, dim))
     velocity[:, 0] = (speed, -speed)
-    span = 10.0 * radius + 4.0 * speed * steps * dt
+    every = max(1, -(-steps // 10))
+    span = 10.0 * radius + 4.0 * speed * 11 * every * dt
     return dem.Setup(
         name="collision", particles=dem.Particles(x, np.full(2, radius), np.zeros(2, int)), nominal_radius=radius,
         kinematic_species=(), n_species=1, density=density, gravity=0.0, contact=c, dt=dt,
         dt_limit=contact.stable_time_step(mass, c.kn), lower=np.full(dim, -span), upper=np.full(dim, span),
-        max_overlap=1.0, schedule=dem.Record(start=steps, every=max(1, steps // 10), frames=2), velocity=velocity)
+        max_overlap=1.0, schedule=dem.Record(start=10 * every, every=every, frames=2), velocity=velocity)
 
 
 def restitution(engine_name: str, c: dem.Contact, radius: float, density: float, dim: int, dt: float,

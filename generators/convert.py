@@ -19,8 +19,9 @@ def trajectory(raw_dir: Path) -> h5md.Trajectory:
     raw = engine.driver(rec.run.engine).read_raw(raw_dir, rec.dt)
     species = np.asarray(raw["species"])
     kinematic = np.isin(species, scene.kinematic_species)
-    if "moving" in raw and not np.array_equal(raw["moving"], ~kinematic):
-        raise h5md.H5MDError(f"{raw_dir}: the engine recorded other particles than the moving ones")
+    if "recorded" in raw and not np.all(raw["recorded"][~kinematic]):
+        raise h5md.H5MDError(f"{raw_dir}: the engine did not record every moving particle "
+                             f"({int((~raw['recorded'][~kinematic]).sum())} missing)")
     parameters = dict(rec.params)
     parameters.update(
         scene=scene.name, units="SI (m, s, kg, Pa)", engine=rec.run.engine, engine_version=rec.run.version,

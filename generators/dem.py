@@ -131,6 +131,7 @@ class Setup:
     motions: tuple[Motion, ...] = ()
     velocity: np.ndarray | None = None
     max_energy_gain: float | None = None
+    tilt: float = 0.0                        # rad: gravity tilted towards +x (an incline of this angle)
     box_lower: np.ndarray | None = None      # the data's box (H5MD); default lower/upper
     box_upper: np.ndarray | None = None
 
@@ -163,6 +164,7 @@ class Frames:
     mass: np.ndarray             # [N] kg (0 for kinematic particles of infinite mass, where an engine says so)
     radius: np.ndarray           # [N] m, as the engine stored them
     kinetic_energy: np.ndarray | None = None   # [T] J of the moving particles, where the engine reports it
+    kinematic_force: np.ndarray | None = None  # [T, D] N: total contact force on the kinematic particles
 
 
 class UnsupportedSetup(ValueError):

@@ -56,9 +56,13 @@ def nominal_mass(setup: dem.Setup) -> float:
 
 def write_data(path, setup: dem.Setup, title: str) -> None:
     """An `atom_style sphere` data file (density column 1: masses are set by the deck), with a
-    Velocities section where the setup starts particles moving."""
+    Velocities section where the setup starts particles moving; its box is the Setup's domain grown to
+    hold every particle."""
     p = setup.particles
-    lower, upper = np.asarray(setup.lower, float), np.asarray(setup.upper, float)
+    # the box holds every particle (a pour may start above the domain it must stay in once settled;
+    # the escape check uses the Setup's bounds)
+    lower = np.minimum(np.asarray(setup.lower, float), (p.x - p.radius[:, None]).min(axis=0))
+    upper = np.maximum(np.asarray(setup.upper, float), (p.x + p.radius[:, None]).max(axis=0))
     lines = [f"LAMMPS data file: {title}", "", f"{len(p.x)} atoms", f"{setup.n_species} atom types", "",
              f"{lower[0]:.10g} {upper[0]:.10g} xlo xhi", f"{lower[1]:.10g} {upper[1]:.10g} ylo yhi",
              "-0.5 0.5 zlo zhi" if setup.dim == 2 else f"{lower[2]:.10g} {upper[2]:.10g} zlo zhi",
@@ -81,9 +85,6 @@ def _types(species: tuple[int, ...] | list[int]) -> str:
 def setup_lines(setup: dem.Setup) -> list[str]:
     """Everything up to the schedule: box, particles, groups, contact model, integration, gravity, walls."""
     dim = setup.dim
-    if setup.motions:
-        raise dem.UnsupportedSetup(f"{setup.name}: the LAMMPS driver does not move kinematic particles yet "
-                                   f"(motions of groups {[m.group for m in setup.motions]}); run this scene in YADE")
     if dim not in (2, 3):
         raise dem.UnsupportedSetup(f"{setup.name}: dimension {dim}; LAMMPS runs 2 or 3")
     kinematic = [s for s in range(setup.n_species) if s in setup.kinematic_species]
@@ -100,7 +101,8 @@ def setup_lines(setup: dem.Setup) -> list[str]:
         lines.append(f"pair_coeff      * {species + 1} "
                      f"{contact_model(override, setup.density, setup.nominal_radius, dim)}")
     exclude = "".join(f" exclude type {a + 1} {b + 1}" for i, a in enumerate(kinematic) for b in kinematic[i:])
-    down = "0 -1 0" if dim == 2 else "0 0 -1"
+    s, c = math.sin(setup.tilt), math.cos(setup.tilt)
+    down = f"{fmt(s)} {fmt(-c)} 0" if dim == 2 else f"{fmt(s)} 0 {fmt(-c)}"
     lines += [f"neighbor        {fmt(0.5 * setup.nominal_radius)} bin",
               f"neigh_modify    delay 0 every 1 check yes{exclude}", "",
               f"fix             integrate moving nve/sphere{' disc' if dim == 2 else ''}",
@@ -108,7 +110,21 @@ def setup_lines(setup: dem.Setup) -> list[str]:
     for k, wall in enumerate(setup.walls):
         bounds = " ".join("NULL" if b is None else fmt(float(b)) for b in (wall.lower, wall.upper))
         lines.append(f"fix             wall{k} all wall/gran granular {model} {AXES[wall.axis]}plane {bounds}")
+    for k, motion in enumerate(setup.motions):
+        lines += motion_lines(setup, k, motion)
     return lines
+
+
+def motion_lines(setup: dem.Setup, k: int, motion: dem.Motion) -> list[str]:
+    """A Motion: its group's atoms (by id, 200 per line) moved at constant velocity by `fix move`."""
+    ids = np.flatnonzero(setup.group(motion.group)) + 1
+    if not np.all(setup.kinematic[ids - 1]):
+        raise dem.UnsupportedSetup(f"{setup.name}: motion of group {motion.group!r} moves particles that are not "
+                                   "of a kinematic species")
+    name = f"motion{k}"
+    lines = [f"group           {name} id {' '.join(str(i) for i in ids[j:j + 200])}" for j in range(0, len(ids), 200)]
+    v = list(motion.velocity) + [0.0] * (3 - len(motion.velocity))
+    return lines + [f"fix             {name} {name} move linear {' '.join(fmt(float(x)) for x in v)}"]
 
 
 def settle_deck(setup: dem.Setup) -> str:
@@ -136,19 +152,38 @@ def settle_deck(setup: dem.Setup) -> str:
     return "\n".join(lines) + "\n"
 
 
+def force_lines(setup: dem.Setup) -> list[str]:
+    """Thermo output of the moving particles' kinetic energy and, where there are kinematic particles, the
+    total contact force on them (c_force[1..D])."""
+    if not setup.kinematic.any():
+        return ["thermo_style    custom step time c_ke c_erot"]
+    axes = AXES[: setup.dim]
+    return [f"compute         force kinematic reduce sum {' '.join('f' + a for a in axes)}",
+            "thermo_style    custom step time c_ke c_erot " + " ".join(f"c_force[{k + 1}]" for k in range(setup.dim))]
+
+
 def record_deck(setup: dem.Setup) -> str:
-    """Static fields once; run to frame 0; then the moving particles' positions every frame, and the
-    moving particles' kinetic energy (translational and rotational) in the thermo output."""
+    """Static fields once; run to frame 0; then the positions of the moving particles and of those a Motion
+    moves every frame, and the moving particles' kinetic energy (translational and rotational) in the
+    thermo output."""
     r = setup.schedule
+    if r.start % r.every:
+        raise dem.UnsupportedSetup(f"{setup.name}: recording starts at step {r.start}, not a multiple of the "
+                                   f"frame interval {r.every} steps; LAMMPS dumps only on multiples of it")
     coords = " ".join(AXES[: setup.dim])
     lines = setup_lines(setup) + [
         *(["fix             plane all enforce2d"] if setup.dim == 2 else []),
         f"timestep        {fmt(setup.dt)}", "",
         "compute         ke moving ke", "compute         erot moving erotate/sphere",
-        "thermo_style    custom step time c_ke c_erot", f"thermo          {r.every}", "",
+        *force_lines(setup), f"thermo          {r.every}", "",
         f"write_dump      all custom {STATIC} id type radius mass modify sort id format float %.10g"]
     if r.start:
         lines.append(f"run             {r.start}")
-    lines += [f"dump            frames moving custom {r.every} {FRAMES} id {coords}",
+    recorded = "moving"
+    if setup.motions:        # moving kinematic particles are recorded too
+        recorded = "recorded"
+        motions = " ".join(f"motion{k}" for k in range(len(setup.motions)))
+        lines.append(f"group           recorded union moving {motions}")
+    lines += [f"dump            frames {recorded} custom {r.every} {FRAMES} id {coords}",
               "dump_modify     frames sort id format float %.10g", f"run             {r.every * (r.frames - 1)}"]
     return "\n".join(lines) + "\n"

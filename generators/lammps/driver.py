@@ -2,9 +2,10 @@
 
 ``settle`` writes the deck of a Settle schedule and returns the settled particles; ``record`` writes
 the deck of a Record schedule and returns the recorded frames; ``read_raw`` reads a recorded run's
-folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``), fixed kinematic
-species, planar walls, per-species contact overrides, initial velocities. Not yet: moving kinematic
-particles and 3D scenes' box motions (the shear scene runs in YADE).
+folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``) and 3D spheres,
+kinematic species (fixed, or moved at constant velocity by a Motion: ``fix move linear``), planar
+walls, per-species contact overrides, initial velocities, gravity tilted for an incline, viscous
+settling damping.
 """
 
 from __future__ import annotations
@@ -68,14 +69,16 @@ def record(setup: dem.Setup, workdir: Path) -> tuple[dem.Frames, EngineRun]:
     if missing:
         raise io.LammpsOutputError(f"{setup.name}: no thermo output at recorded steps {missing[:3]}")
     kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
+    columns = [f"c_force[{k + 1}]" for k in range(setup.dim)]
+    force = thermo[columns].loc[raw["step"]].to_numpy() if all(c in thermo for c in columns) else None
     frames = dem.Frames(position=raw["position"], step=raw["step"], time=raw["time"], mass=raw["mass"],
-                        radius=raw["radius"], kinetic_energy=kinetic)
+                        radius=raw["radius"], kinetic_energy=kinetic, kinematic_force=force)
     return frames, _engine_run(run, workdir / "log.lammps")
 
 
 def read_raw(raw_dir: Path, dt: float) -> dict:
-    """Positions [T, N, D] of every particle (fixed ones from the data file, moving ones from the frames
-    dump), physical times (step x dt) and the static fields."""
+    """Positions [T, N, D] of every particle (the dumped ones, moving or moved by a Motion, from the frames
+    dump; fixed ones from the data file), physical times (step x dt) and the static fields."""
     raw_dir = Path(raw_dir)
     (_, static), = io.read_dump(raw_dir / deck.STATIC)
     frames = io.read_dump(raw_dir / deck.FRAMES)
@@ -95,7 +98,7 @@ def read_raw(raw_dir: Path, dt: float) -> dict:
     step = np.asarray(steps)
     return {"position": position, "step": step, "time": step * dt, "species": species,
             "radius": static["radius"].to_numpy(float), "mass": static["mass"].to_numpy(float),
-            "moving": np.array([int(i) in dumped for i in ids])}
+            "recorded": np.array([int(i) in dumped for i in ids])}
 
 
 def _data_positions(path: Path) -> np.ndarray:

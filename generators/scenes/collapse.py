@@ -155,7 +155,7 @@ class Collapse(Scene):
     dim = 2
     species = {FLOOR: "floor", GRAIN: "grain"}
     kinematic_species = (FLOOR,)
-    engines = ("lammps",)
+    engines = ("lammps", "yade")
     metrics = CollapseMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

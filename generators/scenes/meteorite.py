@@ -240,7 +240,7 @@ class Meteorite(Scene):
     dim = 2
     species = {GROUND: "ground", METEORITE: "meteorite"}
     kinematic_species = ()
-    engines = ("lammps",)
+    engines = ("lammps", "yade")
     metrics = MeteoriteMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

@@ -157,12 +157,13 @@ class ShearMetrics:
 
 
 def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
-    """(dt, stable limit, kn) of the soil contact at the smallest sphere.
+    """(dt, stable limit, kn) of the soil contact.
 
-    kn = 2 E r1 r2 / (r1 + r2) (YADE's ViscElMat from Young's modulus) is E r_min for two of the
-    smallest spheres, the stiffest oscillator relative to its mass: dt_crit = 2 / sqrt(2 kn / m_min).
+    One constant normal stiffness in both engines, kn = E r_mean (2 E r1 r2 / (r1 + r2) of two spheres of
+    the mean radius, contact.normal_stiffness); the stiffest oscillator relative to its mass is two of
+    the smallest spheres: dt_crit = 2 / sqrt(2 kn / m_min).
     """
-    kn = cfg["young"] * cfg["radius"][0]
+    kn = contact.normal_stiffness(cfg["young"], 0.5 * (cfg["radius"][0] + cfg["radius"][1]))
     limit = contact.stable_time_step(contact.sphere_mass(cfg["density"], cfg["radius"][0]), kn)
     return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
 
@@ -172,7 +173,7 @@ class Shear(Scene):
     dim = 3
     species = {BOX: "box", SOIL: "soil"}
     kinematic_species = (BOX,)
-    engines = ("yade",)
+    engines = ("yade", "lammps")
     metrics = ShearMetrics
     log_scaled_properties = ("young",)
 
@@ -205,7 +206,7 @@ class Shear(Scene):
         """The loose soil poured into the box (walls extended upwards)."""
         name = f"packing E = {params['young']:g} Pa"
         return self.setup(params, name, loose_packing(params), dem_step(params, name), domain(params, 0.0),
-                          self.settling(params, "local", SETTLE_CHECK))
+                          self.settling(params, "viscous", SETTLE_CHECK))
 
     def settled(self, params: dict, particles: dem.Particles, where: str) -> dem.Particles:
         """The settled pour, refused if under-filled, trimmed at the box height."""

@@ -2,17 +2,29 @@
 
 Debian's ``yade -n -x`` runs generators/yade/scripts/graphdem_yade.py on a JSON job written from the
 Setup; the script closes YADE's TCP prompt and XML-RPC server before anything else and reports any
-listening socket, which fails the run. Supported: 3D spheres, kinematic species (fixed, or moved at
-constant velocity by a Motion), initial velocities, Cundall's local damping for settling. Contact
-(YADE ViscElMat with Law2_ScGeom_ViscElPhys_Basic): kn = 2 E r1 r2 / (r1 + r2) per contact from
-Contact.young, ks = kt_over_kn kn (ViscElMat calls the ratio ``poisson``), damping from the
-restitution, Coulomb friction. Not yet: 2D discs, planar walls, rolling resistance and per-species
-contact overrides (the 2D scenes run in LAMMPS).
+listening socket, which fails the run.
+
+Supported: 3D spheres; 2D discs as spheres of the disc's radius held in the plane (blocked z translation
+and x, y rotations) with a disc's mass rho pi r^2 and inertia m r^2 / 2 (unit thickness, the LAMMPS 2D
+convention); kinematic species (fixed, or moved at constant velocity by a Motion); planar walls
+(``utils.wall``); initial velocities; per-species overrides that lower the friction (and keep or zero
+the rolling friction); settling with
+Cundall's local damping or a viscous drag.
+
+Contact (YADE ViscElMat with Law2_ScGeom_ViscElPhys_Basic), matched to the LAMMPS driver's linear
+spring-dashpot: each sphere has its own material with young = kn / r, so two spheres meet with the
+constant normal stiffness Contact.kn whatever their radii (YADE: kn = series of 2 young_i r); ks =
+kt_over_kn kn (ViscElMat's ``poisson``); the dashpot from the restitution; Coulomb friction; rolling
+resistance as a constant torque mur R_eff |Fn| against the relative rotation (``mR`` = mur r / 2 per
+sphere, combined by YADE's harmonic mean into mur R_eff; LAMMPS' ``rolling sds`` reaches the same
+limit torque through a spring). A wall meets a sphere of radius r with kn 2 r / (r + r_nominal) times
+Contact.kn (Contact.kn at the nominal radius).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -29,19 +41,36 @@ def _unsupported(setup: dem.Setup, what: str) -> dem.UnsupportedSetup:
     return dem.UnsupportedSetup(f"{setup.name}: the YADE driver does not run {what} yet; run this scene in LAMMPS")
 
 
+def _species_contacts(setup: dem.Setup) -> dict[str, list[float]]:
+    """Per-species overrides as (friction, rolling friction). YADE gives a contact the smaller of its two
+    bodies' friction angles and the harmonic mean of their rolling coefficients: that is LAMMPS'
+    `pair_coeff * s` for an override that lowers the friction and keeps or zeroes the rolling friction,
+    and changes nothing else."""
+    out = {}
+    base = setup.contact
+    for species, c in setup.species_contacts.items():
+        same_rest = dataclasses.replace(c, friction=base.friction, rolling_friction=base.rolling_friction) == base
+        if not same_rest or c.friction > base.friction or c.rolling_friction not in (0.0, base.rolling_friction):
+            raise _unsupported(setup, f"the per-species contact of species {species} ({c}): it runs overrides that "
+                                      "lower the friction and keep or zero the rolling friction only")
+        out[str(species)] = [c.friction, c.rolling_friction]
+    return out
+
+
 def _job(setup: dem.Setup) -> dict:
-    if setup.dim != 3:
+    if setup.dim not in (2, 3):
         raise _unsupported(setup, f"{setup.dim}D scenes")
-    if setup.walls:
-        raise _unsupported(setup, "planar walls")
-    if setup.species_contacts:
-        raise _unsupported(setup, "per-species contact overrides")
-    if setup.contact.rolling_friction:
-        raise _unsupported(setup, "rolling resistance")
     c, p = setup.contact, setup.particles
-    job = {"young": c.young, "poisson": c.kt_over_kn, "restitution": c.restitution, "density": setup.density,
-           "friction": c.friction, "gravity": setup.gravity, "dt": setup.dt, "position": p.x.tolist(),
-           "radius": p.radius.tolist(), "fixed": setup.kinematic.tolist()}
+    walls = []
+    for w in setup.walls:
+        walls += [[w.axis, float(w.lower), 1]] if w.lower is not None else []
+        walls += [[w.axis, float(w.upper), -1]] if w.upper is not None else []
+    job = {"dim": setup.dim, "kn": c.kn, "kt_over_kn": c.kt_over_kn, "restitution": c.restitution,
+           "density": setup.density, "friction": c.friction, "rolling_friction": c.rolling_friction,
+           "species_contacts": _species_contacts(setup), "gravity": setup.gravity, "tilt": setup.tilt,
+           "dt": setup.dt, "nominal_radius": setup.nominal_radius, "position": p.x.tolist(),
+           "radius": p.radius.tolist(), "species": p.species.tolist(), "fixed": setup.kinematic.tolist(),
+           "walls": walls}
     if setup.velocity is not None and np.any(setup.velocity):
         job["velocity"] = np.asarray(setup.velocity, float).tolist()
     return job
@@ -58,14 +87,23 @@ def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None) 
                                       "listening_sockets": report.get("listening_sockets")})
 
 
+def _nominal_mass(setup: dem.Setup) -> float:
+    r = setup.nominal_radius
+    return contact.disc_mass(setup.density, r) if setup.dim == 2 else contact.sphere_mass(setup.density, r)
+
+
 def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
-    """Settle with Cundall's local damping until the kinetic energy per moving sphere is below that of a
-    nominal sphere at the settling speed, checked every ``check_every`` seconds."""
+    """Settle with Cundall's local damping or a viscous drag until the kinetic energy per moving sphere is
+    below that of a nominal sphere at the settling speed, checked every ``check_every`` seconds."""
     s = setup.schedule
-    if s.damping_kind != "local":
-        raise _unsupported(setup, f"settling damping {s.damping_kind!r} (it damps with Cundall's local damping)")
-    mass = contact.sphere_mass(setup.density, setup.nominal_radius)
-    job = {"mode": "settle", **_job(setup), "damping": s.damping, "check_every": s.check_every,
+    mass = _nominal_mass(setup)
+    if s.damping_kind == "local":
+        damping = {"damping": s.damping}
+    elif s.damping_kind == "viscous":       # -damping m_nominal v on a nominal sphere, as LAMMPS' fix viscous
+        damping = {"drag": s.damping * mass / (6.0 * math.pi * setup.nominal_radius)}
+    else:
+        raise _unsupported(setup, f"settling damping {s.damping_kind!r} (it damps with 'local' or 'viscous')")
+    job = {"mode": "settle", **_job(setup), **damping, "check_every": s.check_every,
            "settle_time": s.max_time, "energy_tol": 0.5 * mass * s.speed**2}
     arrays, run = runner.run(job, Path(workdir), "settle")
     (Path(workdir) / "settle.npz").unlink()
@@ -89,7 +127,8 @@ def record(setup: dem.Setup, workdir: Path) -> tuple[dem.Frames, EngineRun]:
                         mass=arrays["mass"], radius=p.radius, species=p.species)
     (workdir / "record.npz").unlink()
     frames = dem.Frames(position=arrays["position"], step=arrays["step"], time=arrays["time"], mass=arrays["mass"],
-                        radius=p.radius)
+                        radius=p.radius, kinetic_energy=arrays["kinetic_energy"],
+                        kinematic_force=arrays["kinematic_force"])
     return frames, _engine_run(run, setup, float(arrays["loop_seconds"]))
 
 

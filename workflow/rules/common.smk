@@ -6,6 +6,7 @@ import os
 import sys
 
 from generators import config as gconfig
+from generators import engine as gengine
 from generators import scenes as gscenes
 from generators import sweep as gsweep
 from generators.packing import packing_key
@@ -20,6 +21,10 @@ except gconfig.ConfigError as exc:
     sys.exit(f"graphdem: {exc}")
 
 SCENES = gscenes.names()
+ENGINES = list(gengine.DRIVERS)
+# A run: a scene in its configured engine (results/<scene>/) or in another engine for the cross-check
+# (results/crosscheck/<scene>/<engine>/), on the same sweep rows.
+CROSSCHECK_RUNS = [f"crosscheck/{s}/{e}" for s in SCENES for e in ENGINES if e != CFG[s]["engine"]]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -27,6 +32,8 @@ BENCHMARKS = list(gconfig.BENCHMARKS)
 
 wildcard_constraints:
     scene="|".join(SCENES),
+    run="|".join(SCENES + CROSSCHECK_RUNS),
+    engine="|".join(ENGINES),
     bench="|".join(BENCHMARKS),
     name="|".join(SCENES + BENCHMARKS),
     sim=r"[a-z]+_\d+",
@@ -46,8 +53,19 @@ def scene_config_json(wildcards) -> str:
     return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in SURROGATE_KEYS})
 
 
-def scene_engine(wildcards) -> str:
-    return CFG[wildcards.scene]["engine"]
+def run_scene(wildcards) -> str:
+    """The scene of a run (results/<scene> or results/crosscheck/<scene>/<engine>)."""
+    return wildcards.run.split("/")[1] if wildcards.run.startswith("crosscheck/") else wildcards.run
+
+
+def run_engine(wildcards) -> str:
+    """The engine of a run: the scene's configured one, or the cross-check's."""
+    return wildcards.run.split("/")[2] if wildcards.run.startswith("crosscheck/") else CFG[wildcards.run]["engine"]
+
+
+def run_dir(scene: str, engine: str) -> str:
+    """Where a scene's run in ``engine`` lives: its own folder for the configured engine."""
+    return f"results/{scene}" if engine == CFG[scene]["engine"] else f"results/crosscheck/{scene}/{engine}"
 
 
 def sim_ids(scene: str) -> list[str]:
@@ -71,18 +89,20 @@ def _physics(scene: str, sim: str) -> dict:
 
 
 def sim_row_json(wildcards) -> str:
-    return _json(_physics(wildcards.scene, wildcards.sim))
+    """A run's sim: the scene's sweep row in the run's engine."""
+    return _json({**_physics(run_scene(wildcards), wildcards.sim), "engine": run_engine(wildcards)})
 
 
 def packing_of_sim(wildcards) -> str:
-    return f"results/{wildcards.scene}/packings/{_row(wildcards.scene, wildcards.sim)['packing']}"
+    return f"results/{wildcards.run}/packings/{_row(run_scene(wildcards), wildcards.sim)['packing']}"
 
 
 def packing_params_json(wildcards) -> str:
-    for params in gscenes.get(wildcards.scene).packings(CFG[wildcards.scene]):
+    scene = run_scene(wildcards)
+    for params in gscenes.get(scene).packings(CFG[scene]):
         if packing_key(params) == wildcards.key:
             return _json(params)
-    raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
+    raise ValueError(f"packing {wildcards.key} does not belong to the current {scene} config")
 
 
 def all_sims(wildcards) -> list[str]:
@@ -159,6 +179,40 @@ def evaluation_args(wildcards) -> str:
         return f"--split test --history {history_length(wildcards)} --rollouts results/{wildcards.name}/rollouts"
     bench = CFG[wildcards.name]
     return f"--split {bench['evaluate']['split']} --history {' '.join(str(k) for k in bench['protocols'])}"
+
+
+# ---- cross-check ---------------------------------------------------------------------------------
+
+
+def crosscheck_ids(scene: str) -> list[str]:
+    """The sweep rows both engines run: the first crosscheck.sims of the sweep (all where null)."""
+    n = CFG["crosscheck"]["sims"]
+    return sim_ids(scene)[:n] if n is not None else sim_ids(scene)
+
+
+def crosscheck_sims(engine: str):
+    """Input function: the cross-checked sims of the scene in ``engine``."""
+    def sims(wildcards) -> list[str]:
+        return [f"{run_dir(wildcards.scene, engine)}/sims/{i}.h5" for i in crosscheck_ids(wildcards.scene)]
+    return sims
+
+
+def scene_engine(wildcards) -> str:
+    return CFG[wildcards.scene]["engine"]
+
+
+def other_engine(wildcards) -> str:
+    """The engine a scene is cross-checked in (the one it is not configured for)."""
+    return next(e for e in ENGINES if e != CFG[wildcards.scene]["engine"])
+
+
+def transfer_other_metrics(wildcards) -> str:
+    return f"results/crosscheck/{wildcards.scene}/transfer_{other_engine(wildcards)}_metrics.csv"
+
+
+def transfer_sims(wildcards) -> list[str]:
+    """The other engine's runs of the scene's test sims (the transfer score)."""
+    return [f"results/crosscheck/{wildcards.scene}/{wildcards.engine}/sims/{i}.h5" for i in test_ids(wildcards.scene)]
 
 
 # ---- public benchmarks ---------------------------------------------------------------------------

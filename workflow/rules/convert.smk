@@ -1,12 +1,12 @@
 # Stage convert: raw engine output (any scene, any engine; its run.json says which) -> one validated H5MD file.
 rule convert:
     input:
-        "results/{scene}/raw/{sim}",
+        "results/{run}/raw/{sim}",
     output:
-        "results/{scene}/sims/{sim}.h5",
+        "results/{run}/sims/{sim}.h5",
     log:
-        "results/{scene}/logs/convert/{sim}.log",
+        "results/{run}/logs/convert/{sim}.log",
     benchmark:
-        "results/{scene}/benchmarks/convert/{sim}.tsv"
+        "results/{run}/benchmarks/convert/{sim}.tsv"
     shell:
         "graphdem convert --raw {input} --out {output} > {log} 2>&1"

@@ -3,13 +3,14 @@ rule simulate:
     input:
         packing=packing_of_sim,
     output:
-        directory("results/{scene}/raw/{sim}"),
+        directory("results/{run}/raw/{sim}"),
     params:
         sim=sim_row_json,
+        scene=run_scene,
     log:
-        "results/{scene}/logs/simulate/{sim}.log",
+        "results/{run}/logs/simulate/{sim}.log",
     benchmark:
-        "results/{scene}/benchmarks/simulate/{sim}.tsv"
+        "results/{run}/benchmarks/simulate/{sim}.tsv"
     shell:
-        "graphdem simulate --scene {wildcards.scene} --sim {params.sim:q} "
+        "graphdem simulate --scene {params.scene} --sim {params.sim:q} "
         "--packing {input.packing} --out {output} > {log} 2>&1"

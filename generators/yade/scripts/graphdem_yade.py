@@ -3,11 +3,12 @@
 It imports only yade, numpy and the standard library. Modes (job["mode"]):
 
 - ``settle``: spheres under gravity with Cundall's non-viscous local damping
-  (``NewtonIntegrator.damping``) until the kinetic energy per soil sphere is below the tolerance or
-  the time limit is reached; writes the final positions.
+  (``NewtonIntegrator.damping``) or a viscous drag (``LinearDragEngine``) until the kinetic energy per
+  moving sphere is below the tolerance or the time limit is reached; writes the final positions.
 - ``record``: each motion's spheres move at their constant velocity (fixed spheres not in a motion are
   held), spheres with an initial ``velocity`` start with it; after ``start`` steps the positions of
-  every sphere are recorded every ``every`` steps.
+  every sphere are recorded every ``every`` steps, with the moving spheres' kinetic energy and the total
+  contact force on the fixed ones.
 
 ``yade`` opens a TCP Python prompt and an XML-RPC server when it starts; the first thing this
 script does is close both, and it records any listening socket it still holds in its output.
@@ -25,12 +26,15 @@ import numpy as np
 from yade import O, utils
 from yade.wrapper import (
     Bo1_Sphere_Aabb,
+    Bo1_Wall_Aabb,
     ForceResetter,
     Ig2_Sphere_Sphere_ScGeom,
+    Ig2_Wall_Sphere_ScGeom,
     InsertionSortCollider,
     InteractionLoop,
     Ip2_ViscElMat_ViscElMat_ViscElPhys,
     Law2_ScGeom_ViscElPhys_Basic,
+    LinearDragEngine,
     NewtonIntegrator,
     ViscElMat,
 )
@@ -70,25 +74,71 @@ def listening_sockets():
     return found
 
 
+def material(job, young, friction, rolling):
+    """A ViscElMat of the job's contact: YADE combines two bodies' stiffnesses in series
+    (kn = kn1 kn2 / (kn1 + kn2) with kn_i = 2 young_i r), friction angles by their minimum and rolling
+    coefficients mR by their harmonic mean."""
+    return O.materials.append(ViscElMat(young=young, poisson=job["kt_over_kn"], en=job["restitution"], et=1.0,
+                                        density=job["density"], frictionAngle=math.atan(friction),
+                                        mR=rolling, mRtype=1))
+
+
+def gravity_vector(job):
+    """Gravity along -y (2D) or -z (3D), tilted by ``tilt`` radians towards +x."""
+    g, tilt = job["gravity"], job.get("tilt", 0.0)
+    if job["dim"] == 2:
+        return (g * math.sin(tilt), -g * math.cos(tilt), 0.0)
+    return (g * math.sin(tilt), 0.0, -g * math.cos(tilt))
+
+
 def build(job):
-    mat = O.materials.append(ViscElMat(young=job["young"], poisson=job["poisson"], en=job["restitution"],
-                                       et=1.0, density=job["density"], frictionAngle=math.atan(job["friction"])))
+    """Bodies, walls and engines of the job. Each sphere has its own material with young = kn / r, so
+    that two spheres meet with the job's constant kn whatever their radii; 2D discs are spheres held in
+    the plane (no z translation, no x or y rotation) with the mass and inertia of a disc of unit
+    thickness."""
+    kn, dim = job["kn"], job["dim"]
+    overrides = {int(k): v for k, v in job.get("species_contacts", {}).items()}
     ids = []
-    for (x, y, z), r, fixed in zip(job["position"], job["radius"], job["fixed"], strict=True):
-        ids.append(O.bodies.append(utils.sphere((x, y, z), r, material=mat, fixed=bool(fixed))))
-    O.engines = [
+    for pos, r, fixed, species in zip(job["position"], job["radius"], job["fixed"], job["species"], strict=True):
+        friction, rolling = overrides.get(int(species), (job["friction"], job["rolling_friction"]))
+        mat = material(job, kn / r, friction, 0.5 * rolling * r)
+        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed))
+        if dim == 2:
+            mass = job["density"] * math.pi * r * r
+            body.state.mass = mass
+            body.state.inertia = (0.5 * mass * r * r,) * 3
+            if not fixed:
+                body.state.blockedDOFs = "zXY"
+        ids.append(O.bodies.append(body))
+    # a wall meets sphere i with kn = series(2 kn, 2 young_w r_i): young_w = kn / r_nominal gives kn at the
+    # nominal radius; its mR is large so that the harmonic mean gives the sphere's mur * r_i
+    wall_mat = material(job, kn / job["nominal_radius"], job["friction"], 1.0e6 if job["rolling_friction"] else 0.0)
+    for axis, value, sense in job.get("walls", []):
+        centre = [0.0, 0.0, 0.0]
+        centre[axis] = value
+        O.bodies.append(utils.wall(tuple(centre), axis=axis, sense=sense, material=wall_mat))
+    free = [i for i, f in zip(ids, job["fixed"], strict=True) if not f]
+    engines = [
         ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb()]),
-        InteractionLoop([Ig2_Sphere_Sphere_ScGeom()], [Ip2_ViscElMat_ViscElMat_ViscElPhys()],
+        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
+        InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()], [Ip2_ViscElMat_ViscElMat_ViscElPhys()],
                         [Law2_ScGeom_ViscElPhys_Basic()]),
-        NewtonIntegrator(damping=job.get("damping", 0.0), gravity=(0.0, 0.0, -job["gravity"])),
     ]
+    if job.get("drag"):                    # viscous settling damping: F = -6 pi nu r v on each moving sphere
+        engines.append(LinearDragEngine(nu=job["drag"], ids=free))
+    engines.append(NewtonIntegrator(damping=job.get("damping", 0.0), gravity=gravity_vector(job)))
+    O.engines = engines
     O.dt = job["dt"]
     return ids
 
 
-def positions(ids):
-    return np.array([tuple(O.bodies[i].state.pos) for i in ids])
+def vector3(v):
+    """A 2D or 3D vector as YADE's 3-vector (2D: z = 0)."""
+    return (*v, 0.0) if len(v) == 2 else tuple(v)
+
+
+def positions(ids, dim):
+    return np.array([tuple(O.bodies[i].state.pos)[:dim] for i in ids])
 
 
 def kinetic_per_sphere(ids, free):
@@ -98,6 +148,26 @@ def kinetic_per_sphere(ids, free):
             s = O.bodies[i].state
             energy += 0.5 * s.mass * s.vel.squaredNorm()
     return energy / max(1, sum(free))
+
+
+def kinetic_energy(ids, free):
+    """Translational plus rotational kinetic energy of the moving spheres."""
+    energy = 0.0
+    for i, f in zip(ids, free, strict=True):
+        if f:
+            s = O.bodies[i].state
+            w = s.angVel
+            energy += 0.5 * s.mass * s.vel.squaredNorm() + 0.5 * sum(s.inertia[k] * w[k] ** 2 for k in range(3))
+    return energy
+
+
+def force_on(ids, fixed, dim):
+    """Total contact force on the fixed (kinematic) spheres."""
+    total = np.zeros(3)
+    for i, f in zip(ids, fixed, strict=True):
+        if f:
+            total += np.array(tuple(O.forces.f(i)))
+    return total[:dim]
 
 
 def settle(job, out):
@@ -111,31 +181,36 @@ def settle(job, out):
         energy = kinetic_per_sphere(ids, free)
         if energy < job["energy_tol"]:
             break
-    np.savez(out, position=positions(ids), iterations=O.iter, time=O.time, kinetic_per_sphere=energy)
+    np.savez(out, position=positions(ids, job["dim"]), iterations=O.iter, time=O.time, kinetic_per_sphere=energy)
 
 
 def record(job, out):
     ids = build(job)
     for i, v in zip(ids, job.get("velocity") or [], strict=False):
         if any(v):
-            O.bodies[i].state.vel = tuple(v)
+            O.bodies[i].state.vel = vector3(v)
     for motion in job["motions"]:
         for i, moving in zip(ids, motion["mask"], strict=True):
             if moving:
-                O.bodies[i].state.vel = tuple(motion["velocity"])
+                O.bodies[i].state.vel = vector3(motion["velocity"])
     if job["start"]:
         O.run(job["start"], True)
-    frames, steps, times = [], [], []
-    start = time.perf_counter()
+    free = [not f for f in job["fixed"]]
+    frames, steps, times, energies, forces = [], [], [], [], []
+    loop = 0.0
     for f in range(job["frames"]):
         if f:
+            start = time.perf_counter()
             O.run(job["every"], True)
-        frames.append(positions(ids))
+            loop += time.perf_counter() - start
+        frames.append(positions(ids, job["dim"]))
         steps.append(O.iter)
         times.append(O.time)
-    loop = time.perf_counter() - start
+        energies.append(kinetic_energy(ids, free))
+        forces.append(force_on(ids, job["fixed"], job["dim"]))
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
-             mass=np.array([O.bodies[i].state.mass for i in ids]), loop_seconds=loop)
+             mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
+             kinematic_force=np.stack(forces), loop_seconds=loop)
 
 
 def main():

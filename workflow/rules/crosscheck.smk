@@ -1,0 +1,69 @@
+# Stage crosscheck: the scene's sweep rows run in both engines (LAMMPS and YADE), each scene metric compared
+# over the sims (docs/crosscheck.md); and the transfer score of the scene's model on the other engine's test sims.
+rule crosscheck:
+    input:
+        lammps=crosscheck_sims("lammps"),
+        yade=crosscheck_sims("yade"),
+    output:
+        "results/crosscheck/{scene}.csv",
+    params:
+        tolerance=CFG["crosscheck"]["tolerance"],
+        body=body_displacement_arg,
+    log:
+        "results/crosscheck/logs/{scene}.log",
+    benchmark:
+        "results/crosscheck/benchmarks/{scene}.tsv"
+    shell:
+        "graphdem crosscheck --scene {wildcards.scene} --sims $(printf 'lammps=%s ' {input.lammps}) "
+        "$(printf 'yade=%s ' {input.yade}) --tolerance {params.tolerance} {params.body} --out {output} > {log} 2>&1"
+
+
+rule crosscheck_all:
+    input:
+        expand("results/crosscheck/{scene}.csv", scene=SCENES),
+    output:
+        "results/crosscheck.csv",
+    log:
+        "results/crosscheck/logs/all.log",
+    benchmark:
+        "results/crosscheck/benchmarks/all.tsv"
+    shell:
+        "graphdem crosscheck --combine {input} --out {output} > {log} 2>&1"
+
+
+rule transfer_evaluate:
+    input:
+        checkpoint="results/{scene}/model/best.pt",
+        sims=transfer_sims,
+    output:
+        "results/crosscheck/{scene}/transfer_{engine}_metrics.csv",
+    params:
+        history=history_length,
+        runtime=runtime_json,
+        body=body_displacement_arg,
+    threads: 1
+    log:
+        "results/crosscheck/{scene}/logs/transfer_{engine}.log",
+    benchmark:
+        "results/crosscheck/{scene}/benchmarks/transfer_{engine}.tsv"
+    shell:
+        "graphdem evaluate --checkpoint {input.checkpoint} --data {input.sims} --split test --history {params.history} "
+        "--runtime-json {params.runtime:q} {params.body} --out {output} --no-progress > {log} 2>&1"
+
+
+rule transfer:
+    input:
+        same="results/{scene}/metrics.csv",
+        other=transfer_other_metrics,
+    output:
+        "results/crosscheck/{scene}_transfer.csv",
+    params:
+        trained_on=scene_engine,
+        other=other_engine,
+    log:
+        "results/crosscheck/logs/{scene}_transfer.log",
+    benchmark:
+        "results/crosscheck/benchmarks/{scene}_transfer.tsv"
+    shell:
+        "graphdem transfer --same {input.same} --other {input.other} --trained-on {params.trained_on} "
+        "--other-engine {params.other} --out {output} > {log} 2>&1"
