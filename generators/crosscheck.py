@@ -5,7 +5,9 @@ Granular flows are chaotic, so single trajectories are not compared: each sim gi
 metric (its value at the last frame, the deposit), and the two engines' distributions over the sims
 are compared by their means. A metric passes when the engines' means differ by at most ``tolerance``
 (relative to the larger magnitude of the two) or by at most their combined standard error
-sqrt(s_a^2 / n_a + s_b^2 / n_b), where that is larger. Both bounds are in the table.
+sqrt(s_a^2 / n_a + s_b^2 / n_b), where that is larger. Both bounds are in the table. A metric
+undefined at a sim's last frame (a crater metric before anything is disturbed) leaves that sim out;
+with fewer than two values in an engine the row says so and has no verdict.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import pandas as pd
 from generators import h5md, scenes
 
 COLUMNS = ("scene", "metric", "unit", "engine_a", "engine_b", "n_a", "n_b", "mean_a", "mean_b", "std_a", "std_b",
-           "rel_diff", "tolerance", "combined_se", "allowed", "pass")
+           "rel_diff", "tolerance", "combined_se", "allowed", "pass", "note")
 
 
 def final_values(scene: str, files: list[Path], body_displacement: float | None = None) -> pd.DataFrame:
@@ -50,6 +52,14 @@ def compare(scene: str, engines: dict[str, list[Path]], tolerance: float,
     rows = []
     for name in scenes.get(scene).metrics.names:
         xa, xb = va[name].to_numpy(float), vb[name].to_numpy(float)
+        undefined = (f"undefined at the last frame in {int(np.isnan(xa).sum())} {a} and "
+                     f"{int(np.isnan(xb).sum())} {b} sims")
+        xa, xb = xa[np.isfinite(xa)], xb[np.isfinite(xb)]
+        if min(len(xa), len(xb)) < 2:     # e.g. no crater yet: nothing to compare, said so rather than passed
+            rows.append({"scene": scene, "metric": name, "unit": units.get(name, ""), "engine_a": a, "engine_b": b,
+                         "n_a": len(xa), "n_b": len(xb), "tolerance": tolerance, "pass": None,
+                         "note": undefined + "; fewer than 2 values in an engine, not compared"})
+            continue
         ma, mb, sa, sb = xa.mean(), xb.mean(), xa.std(ddof=1), xb.std(ddof=1)
         scale = max(abs(ma), abs(mb))
         rel = abs(ma - mb) / scale if scale > 0 else 0.0
@@ -58,7 +68,8 @@ def compare(scene: str, engines: dict[str, list[Path]], tolerance: float,
         rows.append({"scene": scene, "metric": name, "unit": units.get(name, ""), "engine_a": a, "engine_b": b,
                      "n_a": len(xa), "n_b": len(xb), "mean_a": ma, "mean_b": mb, "std_a": sa, "std_b": sb,
                      "rel_diff": rel, "tolerance": tolerance, "combined_se": se, "allowed": allowed,
-                     "pass": bool(abs(ma - mb) <= allowed)})
+                     "pass": bool(abs(ma - mb) <= allowed),
+                     "note": undefined if len(xa) < len(va) or len(xb) < len(vb) else ""})
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 

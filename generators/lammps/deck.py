@@ -6,7 +6,8 @@ constraint last) is the order LAMMPS adds their forces in.
 
 Contact model (one definition, :func:`contact_model`, for particle pairs, per-species overrides and
 walls): LAMMPS ``pair_style granular`` with ``hooke kn e damping tsuji`` (linear normal spring and
-dashpot, constant kn = Contact.kn), ``tangential linear_history kt 1.0 mu`` (Coulomb friction) and
+dashpot, constant kn = Contact.kn), ``tangential linear_history kt 0.0 mu`` (a tangential spring with
+Coulomb friction and no tangential dashpot, as YADE's ViscElMat) and
 ``rolling sds kr gammar mur`` (rolling resistance). ``damping tsuji`` maps its input through Tsuji's
 polynomial; the restitution given is inverted through it (contact.lammps_tsuji_input) so that a linear
 contact has the configured one.
@@ -45,7 +46,7 @@ def contact_model(c: dem.Contact, density: float, nominal_radius: float, dim: in
     zeta = cm.damping_ratio(c.restitution)
     gammar = 2.0 * zeta * math.sqrt(kt * mass / 2.0) * nominal_radius**2
     return (f"hooke {fmt(c.kn)} {fmt(cm.lammps_tsuji_input(c.restitution))} damping tsuji "
-            f"tangential linear_history {fmt(kt)} 1.0 {fmt(c.friction)} "
+            f"tangential linear_history {fmt(kt)} 0.0 {fmt(c.friction)} "
             f"rolling sds {fmt(kt)} {fmt(gammar)} {fmt(c.rolling_friction)}")
 
 

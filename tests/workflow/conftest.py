@@ -1,5 +1,6 @@
-"""One ci-scale run of the slide, meteorite and shear scenes (the default ci config), shared by the
-workflow tests; two engine jobs run side by side under -c2 (two YADE processes for the shear)."""
+"""One ci-scale run of the slide, meteorite and shear scenes (the default ci config) and of the cross-check
+of all four scenes in LAMMPS and YADE (with the slide's and the shear's transfer scores), shared by the
+workflow tests; two engine jobs run side by side under -c2."""
 
 import subprocess
 import sys
@@ -15,6 +16,8 @@ SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 def ci_results(tmp_path_factory) -> Path:
     wd = tmp_path_factory.mktemp("ci_scenes")
     targets = [f"results/{scene}/metrics.csv" for scene in ("meteorite", "shear", "slide")]
+    targets += ["results/crosscheck.csv",
+                *(f"results/crosscheck/{scene}_transfer.csv" for scene in ("slide", "shear"))]
     proc = subprocess.run([SNAKEMAKE, "-c2", "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--config", "scale=ci",
                            "--", *targets], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]

@@ -1,6 +1,8 @@
 """The ci-scale outputs of the slide, meteorite and shear scenes are pinned (tests/workflow/fingerprint.py):
 the sweep tables and packing keys are identical, every sim's H5MD positions bit-identical, and metrics.csv
-identical (Graph-DEM's rows to a relative 1e-6), to those made before the scene x engine redesign."""
+identical (Graph-DEM's rows to a relative 1e-6), to those pinned when both engines were put on one
+contact law (no tangential dashpot in LAMMPS; the shear's constant kn = E r_mean, dt_safety 0.02 and
+viscous settling). Before that they were pinned across the scene x engine redesign."""
 
 import json
 import math

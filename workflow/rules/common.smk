@@ -23,7 +23,7 @@ except gconfig.ConfigError as exc:
 SCENES = gscenes.names()
 ENGINES = list(gengine.DRIVERS)
 # A run: a scene in its configured engine (results/<scene>/) or in another engine for the cross-check
-# (results/crosscheck/<scene>/<engine>/), on the same sweep rows.
+# (results/crosscheck/<scene>/<engine>/), on the same sweep rows from the same settled packings.
 CROSSCHECK_RUNS = [f"crosscheck/{s}/{e}" for s in SCENES for e in ENGINES if e != CFG[s]["engine"]]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
@@ -51,6 +51,10 @@ def is_scene(wildcards) -> bool:
 def scene_config_json(wildcards) -> str:
     """The scene's DEM and sweep settings (what the sweep table depends on)."""
     return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in SURROGATE_KEYS})
+
+
+def scene_engine(wildcards) -> str:
+    return CFG[wildcards.scene]["engine"]
 
 
 def run_scene(wildcards) -> str:
@@ -94,15 +98,17 @@ def sim_row_json(wildcards) -> str:
 
 
 def packing_of_sim(wildcards) -> str:
-    return f"results/{wildcards.run}/packings/{_row(run_scene(wildcards), wildcards.sim)['packing']}"
+    """The sim's settled packing: part of its sweep row, so the cross-check's other engine starts from the
+    same one (settled by the scene's configured engine; docs/crosscheck.md)."""
+    scene = run_scene(wildcards)
+    return f"results/{scene}/packings/{_row(scene, wildcards.sim)['packing']}"
 
 
 def packing_params_json(wildcards) -> str:
-    scene = run_scene(wildcards)
-    for params in gscenes.get(scene).packings(CFG[scene]):
+    for params in gscenes.get(wildcards.scene).packings(CFG[wildcards.scene]):
         if packing_key(params) == wildcards.key:
             return _json(params)
-    raise ValueError(f"packing {wildcards.key} does not belong to the current {scene} config")
+    raise ValueError(f"packing {wildcards.key} does not belong to the current {wildcards.scene} config")
 
 
 def all_sims(wildcards) -> list[str]:
@@ -195,10 +201,6 @@ def crosscheck_sims(engine: str):
     def sims(wildcards) -> list[str]:
         return [f"{run_dir(wildcards.scene, engine)}/sims/{i}.h5" for i in crosscheck_ids(wildcards.scene)]
     return sims
-
-
-def scene_engine(wildcards) -> str:
-    return CFG[wildcards.scene]["engine"]
 
 
 def other_engine(wildcards) -> str:
