@@ -1,6 +1,6 @@
 """The ci-scale outputs of the slide, meteorite and shear scenes are pinned (tests/workflow/fingerprint.py):
 the sweep tables and packing keys are identical, every sim's H5MD positions bit-identical, and metrics.csv
-identical (Graph-DEM's rows to a relative 1e-6), to those pinned when both engines were put on one
+identical (Graph-DEM's rows to a relative 1e-5), to those pinned when both engines were put on one
 contact law (no tangential dashpot in LAMMPS; the shear's constant kn = E r_mean, dt_safety 0.02 and
 viscous settling). Before that they were pinned across the scene x engine redesign."""
 
@@ -35,6 +35,6 @@ def test_outputs_unchanged(ci_results, scene):
         if pinned["metric"] == "seconds per frame":          # a wall time: measured, never pinned
             assert row["metric"] == pinned["metric"] and row["mean_prediction"] > 0
             continue
-        relative = 1e-6 if pinned["method"] == MODEL else 0.0
+        relative = 1e-5 if pinned["method"] == MODEL else 0.0
         different = {k: (row.get(k), v) for k, v in pinned.items() if not _same(row.get(k), v, relative)}
         assert not different, (pinned["method"], pinned["metric"], pinned["sim"], different)
