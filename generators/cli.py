@@ -104,17 +104,6 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
-def _engine_files(items: list[str]) -> dict[str, list[Path]]:
-    """ENGINE=PATH... arguments (repeated per engine) as engine -> H5MD files."""
-    out: dict[str, list[Path]] = {}
-    for item in items:
-        engine, sep, path = item.partition("=")
-        if not sep or engine not in ("lammps", "yade"):
-            raise SystemExit(f"graphdem crosscheck: --sims {item!r}: expected ENGINE=FILE.h5, ENGINE lammps or yade")
-        out.setdefault(engine, []).append(Path(path))
-    return out
-
-
 def cmd_crosscheck(args) -> None:
     import pandas as pd
 
@@ -122,10 +111,11 @@ def cmd_crosscheck(args) -> None:
     from generators.atomic import atomic_path
     if args.combine:
         table = pd.concat([pd.read_csv(p) for p in args.combine], ignore_index=True)
-    elif args.scene is None or not args.sims:
-        raise SystemExit("graphdem crosscheck: give --scene and --sims ENGINE=FILE.h5 ..., or --combine TABLES")
+    elif args.scene is None or not (args.lammps and args.yade):
+        raise SystemExit("graphdem crosscheck: give --scene, --lammps FILES and --yade FILES, or --combine TABLES")
     else:
-        table = crosscheck.compare(args.scene, _engine_files(args.sims), args.tolerance, args.body_displacement)
+        table = crosscheck.compare(args.scene, {"lammps": args.lammps, "yade": args.yade}, args.tolerance,
+                                   args.body_displacement)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False)
     print(table.to_string(index=False))
@@ -209,8 +199,9 @@ def add_commands(sub) -> None:
                                    "mean and standard deviation over the sims, their relative difference and "
                                    "pass/fail against the larger of --tolerance and the combined standard error "
                                    "(docs/crosscheck.md). With --combine, stack finished tables instead.")
-    p.add_argument("--scene", choices=names, help="the scene (with --sims)")
-    p.add_argument("--sims", nargs="+", metavar="ENGINE=FILE.h5", help="each engine's H5MD sims, e.g. lammps=a.h5")
+    p.add_argument("--scene", choices=names, help="the scene (with --lammps and --yade)")
+    p.add_argument("--lammps", type=Path, nargs="+", help="the sims run in LAMMPS (H5MD)")
+    p.add_argument("--yade", type=Path, nargs="+", help="the same sims run in YADE (H5MD)")
     p.add_argument("--tolerance", type=float, default=0.05, help="relative tolerance on each metric's mean")
     p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
     p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")

@@ -18,7 +18,7 @@ from generators import contact, dem, engine
 
 
 def collision_setup(c: dem.Contact, radius: float, density: float, dim: int, dt: float, speed: float) -> dem.Setup:
-    mass = contact.disc_mass(density, radius) if dim == 2 else contact.sphere_mass(density, radius)
+    mass = contact.particle_mass(density, radius, dim)
     contact_time = math.pi / math.sqrt(2.0 * c.kn / mass)
     steps = int((0.1 * radius / speed + 3.0 * contact_time) / dt)
     x = np.zeros((2, dim))

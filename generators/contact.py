@@ -75,6 +75,11 @@ def sphere_mass(density: float, radius: float) -> float:
     return density * 4.0 / 3.0 * math.pi * radius**3
 
 
+def particle_mass(density: float, radius: float, dim: int) -> float:
+    """Mass of a particle of a ``dim``-dimensional scene: a disc of unit thickness (2) or a sphere (3)."""
+    return disc_mass(density, radius) if dim == 2 else sphere_mass(density, radius)
+
+
 def stable_time_step(min_mass: float, kn: float) -> float:
     """Stable limit of velocity Verlet for the stiffest pair contact.
 
@@ -96,10 +101,10 @@ def choose_time_step(limit: float, safety: float, requested: float | None, where
     return requested
 
 
-def disc_time_step(cfg: dict, where: str) -> tuple[float, float, float]:
-    """(dt, stable limit, kn) of a 2D scene of discs (LAMMPS, unit thickness): kn from the modulus
-    and the mean radius, the limit at two of the smallest moving discs (fixed particles have
-    infinite mass)."""
+def time_step(cfg: dict, where: str, dim: int) -> tuple[float, float, float]:
+    """(dt, stable limit, kn) of a scene's contact: one constant kn = E r_mean in both engines (2 E r1 r2 /
+    (r1 + r2) of two particles of the mean radius, per unit thickness in 2D), the limit at two of the
+    smallest moving particles (fixed particles have infinite mass; kn / m is largest for the smallest)."""
     kn = normal_stiffness(cfg["young"], 0.5 * (cfg["radius"][0] + cfg["radius"][1]))
-    limit = stable_time_step(disc_mass(cfg["density"], cfg["radius"][0]), kn)
+    limit = stable_time_step(particle_mass(cfg["density"], cfg["radius"][0], dim), kn)
     return choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn

@@ -42,7 +42,7 @@ def contact_model(c: dem.Contact, density: float, nominal_radius: float, dim: in
     gammar = 2 zeta sqrt(kr m / 2) r^2 with zeta from the restitution.
     """
     kt = c.kt_over_kn * c.kn
-    mass = cm.disc_mass(density, nominal_radius) if dim == 2 else cm.sphere_mass(density, nominal_radius)
+    mass = cm.particle_mass(density, nominal_radius, dim)
     zeta = cm.damping_ratio(c.restitution)
     gammar = 2.0 * zeta * math.sqrt(kt * mass / 2.0) * nominal_radius**2
     return (f"hooke {fmt(c.kn)} {fmt(cm.lammps_tsuji_input(c.restitution))} damping tsuji "
@@ -51,8 +51,7 @@ def contact_model(c: dem.Contact, density: float, nominal_radius: float, dim: in
 
 
 def nominal_mass(setup: dem.Setup) -> float:
-    r = setup.nominal_radius
-    return cm.disc_mass(setup.density, r) if setup.dim == 2 else cm.sphere_mass(setup.density, r)
+    return cm.particle_mass(setup.density, setup.nominal_radius, setup.dim)
 
 
 def write_data(path, setup: dem.Setup, title: str) -> None:

@@ -186,7 +186,7 @@ class Collapse(Scene):
         seed = [params["seed"], int(round(1000 * params["aspect"]))]
         particles = floor_particles(params, upper[0]).concat(loose_column(params, params["aspect"], seed))
         name = f"collapse column a = {params['aspect']:g}"
-        return self.setup(params, name, particles, contact.disc_time_step(params, name), (np.zeros(2), upper),
+        return self.setup(params, name, particles, contact.time_step(params, name, self.dim), (np.zeros(2), upper),
                           self.settling(params, "viscous", SETTLE_CHECK),
                           walls=(dem.PlanarWall(0, 0.0, width),))
 
@@ -200,7 +200,7 @@ class Collapse(Scene):
         def record(dt: float) -> dem.Record:
             return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
 
-        return self.setup(row, row["id"], particles, contact.disc_time_step(row, row["id"]), (np.zeros(2), upper),
+        return self.setup(row, row["id"], particles, contact.time_step(row, row["id"], self.dim), (np.zeros(2), upper),
                           record, walls=(dem.PlanarWall(0, 0.0, float(upper[0])),),
                           max_energy_gain=row["max_energy_gain"])
 

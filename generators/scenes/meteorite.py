@@ -262,7 +262,7 @@ class Meteorite(Scene):
 
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_bed(params, seed=[params["seed"], 2000 + params["packing_index"]])
-        return self.setup(params, "meteorite", loose, contact.disc_time_step(params, "meteorite"), _bounds(params),
+        return self.setup(params, "meteorite", loose, contact.time_step(params, "meteorite", self.dim), _bounds(params),
                           self.settling(params, "viscous", SETTLE_CHECK), walls=_walls(params))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
@@ -273,7 +273,7 @@ class Meteorite(Scene):
         def record(dt: float) -> dem.Record:
             return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
 
-        return self.setup(row, row["id"], particles, contact.disc_time_step(row, row["id"]), _bounds(row), record,
+        return self.setup(row, row["id"], particles, contact.time_step(row, row["id"], self.dim), _bounds(row), record,
                           velocity=initial, max_energy_gain=row["max_energy_gain"], walls=_walls(row))
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:

@@ -157,15 +157,8 @@ class ShearMetrics:
 
 
 def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
-    """(dt, stable limit, kn) of the soil contact.
-
-    One constant normal stiffness in both engines, kn = E r_mean (2 E r1 r2 / (r1 + r2) of two spheres of
-    the mean radius, contact.normal_stiffness); the stiffest oscillator relative to its mass is two of
-    the smallest spheres: dt_crit = 2 / sqrt(2 kn / m_min).
-    """
-    kn = contact.normal_stiffness(cfg["young"], 0.5 * (cfg["radius"][0] + cfg["radius"][1]))
-    limit = contact.stable_time_step(contact.sphere_mass(cfg["density"], cfg["radius"][0]), kn)
-    return contact.choose_time_step(limit, cfg["dt_safety"], cfg["dt"], where), limit, kn
+    """(dt, stable limit, kn) of the soil contact at the sim's modulus (contact.time_step)."""
+    return contact.time_step(cfg, where, 3)
 
 
 class Shear(Scene):

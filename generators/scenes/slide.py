@@ -208,7 +208,7 @@ class Slide(Scene):
 
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_packing(params, seed=[params["seed"], 1000 + params["packing_index"]])
-        return self.setup(params, "slide", loose, contact.disc_time_step(params, "slide"), _bounds(params),
+        return self.setup(params, "slide", loose, contact.time_step(params, "slide", self.dim), _bounds(params),
                           self.settling(params, "viscous", SETTLE_CHECK))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
@@ -222,7 +222,7 @@ class Slide(Scene):
             return dem.Record(start=every * int(round(row["record_start"] / (every * dt))), every=every,
                               frames=row["frames"])
 
-        step = contact.disc_time_step(row, where=row["id"])
+        step = contact.time_step(row, row["id"], self.dim)
         weak = self.contact(row, step[2], row["weak_friction"], row["weak_rolling_friction"])
         return self.setup(row, row["id"], particles, step, _bounds(row), record,
                           max_energy_gain=row["max_energy_gain"], species_contacts={WEAK: weak})

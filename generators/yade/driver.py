@@ -87,16 +87,11 @@ def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None) 
                                       "listening_sockets": report.get("listening_sockets")})
 
 
-def _nominal_mass(setup: dem.Setup) -> float:
-    r = setup.nominal_radius
-    return contact.disc_mass(setup.density, r) if setup.dim == 2 else contact.sphere_mass(setup.density, r)
-
-
 def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
     """Settle with Cundall's local damping or a viscous drag until the kinetic energy per moving sphere is
     below that of a nominal sphere at the settling speed, checked every ``check_every`` seconds."""
     s = setup.schedule
-    mass = _nominal_mass(setup)
+    mass = contact.particle_mass(setup.density, setup.nominal_radius, setup.dim)
     if s.damping_kind == "local":
         damping = {"damping": s.damping}
     elif s.damping_kind == "viscous":       # -damping m_nominal v on a nominal sphere, as LAMMPS' fix viscous

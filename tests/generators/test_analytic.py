@@ -23,7 +23,7 @@ def _contact(dim: int, friction: float = 0.5, restitution: float = 0.5) -> dem.C
 
 
 def _mass(dim: int) -> float:
-    return contact.disc_mass(DENSITY, RADIUS) if dim == 2 else contact.sphere_mass(DENSITY, RADIUS)
+    return contact.particle_mass(DENSITY, RADIUS, dim)
 
 
 def _setup(dim: int, x: np.ndarray, c: dem.Contact, schedule: dem.Record, species=None, kinematic=(), walls=(),
@@ -66,7 +66,7 @@ def test_free_fall_follows_g_t2_over_2(engine_name, dim, tmp_path):
     np.testing.assert_allclose(frames.position[:, 0, :-1], 0.0, atol=1e-12)     # falls straight down
 
 
-def _scene_contact(name: str) -> dem.Setup:
+def _scene_setup(name: str) -> dem.Setup:
     """A Setup of the scene at its default scale: its contact, nominal radius and own time step."""
     cfg = config.load({"scale": "default"})[name]
     scene = scenes.get(name)
@@ -76,9 +76,8 @@ def _scene_contact(name: str) -> dem.Setup:
 @pytest.mark.parametrize("engine_name", ENGINES)
 @pytest.mark.parametrize("scene_name", scenes.names())
 def test_normal_restitution_within_2_percent_at_the_scene_time_step(engine_name, scene_name, tmp_path):
-    s = _scene_contact(scene_name)
-    mass = contact.disc_mass(s.density, s.nominal_radius) if s.dim == 2 else contact.sphere_mass(s.density,
-                                                                                                 s.nominal_radius)
+    s = _scene_setup(scene_name)
+    mass = contact.particle_mass(s.density, s.nominal_radius, s.dim)
     speed = 0.01 * s.nominal_radius * math.sqrt(2.0 * s.contact.kn / mass)    # peak overlap ~1 % of a radius
     e = collision.restitution(engine_name, s.contact, s.nominal_radius, s.density, s.dim, s.dt, speed, tmp_path)
     assert e == pytest.approx(s.contact.restitution, rel=0.02), (scene_name, s.dt / s.dt_limit)

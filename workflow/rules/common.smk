@@ -214,7 +214,7 @@ def transfer_other_metrics(wildcards) -> str:
 
 def transfer_sims(wildcards) -> list[str]:
     """The other engine's runs of the scene's test sims (the transfer score)."""
-    return [f"results/crosscheck/{wildcards.scene}/{wildcards.engine}/sims/{i}.h5" for i in test_ids(wildcards.scene)]
+    return [f"{run_dir(wildcards.scene, wildcards.engine)}/sims/{i}.h5" for i in test_ids(wildcards.scene)]
 
 
 # ---- public benchmarks ---------------------------------------------------------------------------

@@ -14,8 +14,8 @@ rule crosscheck:
     benchmark:
         "results/crosscheck/benchmarks/{scene}.tsv"
     shell:
-        "graphdem crosscheck --scene {wildcards.scene} --sims $(printf 'lammps=%s ' {input.lammps}) "
-        "$(printf 'yade=%s ' {input.yade}) --tolerance {params.tolerance} {params.body} --out {output} > {log} 2>&1"
+        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps} --yade {input.yade} "
+        "--tolerance {params.tolerance} {params.body} --out {output} > {log} 2>&1"
 
 
 rule crosscheck_all:

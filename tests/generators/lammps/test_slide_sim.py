@@ -88,7 +88,7 @@ def _simulate_cli(row, packing, out):
 
 
 def test_unstable_time_step_is_refused_with_both_numbers(tiny, tmp_path):
-    dt, limit, _ = contact.disc_time_step(tiny["cfg"], "x")
+    dt, limit, _ = contact.time_step(tiny["cfg"], "x", 2)
     row = dict(tiny["row"], dt=2 * limit)
     proc = _simulate_cli(row, tiny["packing"], tmp_path / "raw")
     assert proc.returncode == 1
