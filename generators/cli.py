@@ -115,7 +115,7 @@ def cmd_crosscheck(args) -> None:
         raise SystemExit("graphdem crosscheck: give --scene, --lammps FILES and --yade FILES, or --combine TABLES")
     else:
         table = crosscheck.compare(args.scene, {"lammps": args.lammps, "yade": args.yade}, args.tolerance,
-                                   args.body_displacement)
+                                   args.body_displacement, args.chaos)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False)
     print(table.to_string(index=False))
@@ -202,6 +202,8 @@ def add_commands(sub) -> None:
     p.add_argument("--scene", choices=names, help="the scene (with --lammps and --yade)")
     p.add_argument("--lammps", type=Path, nargs="+", help="the sims run in LAMMPS (H5MD)")
     p.add_argument("--yade", type=Path, nargs="+", help="the same sims run in YADE (H5MD)")
+    p.add_argument("--chaos", type=Path, nargs="+",
+                   help="the same sims rerun by one of the engines from perturbed packings (the DEM's own chaos)")
     p.add_argument("--tolerance", type=float, default=0.05, help="relative tolerance on each metric's mean")
     p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
     p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")

@@ -7,7 +7,9 @@ are compared by their means. A metric passes when the engines' means differ by a
 (relative to the larger magnitude of the two) or by at most their combined standard error
 sqrt(s_a^2 / n_a + s_b^2 / n_b), where that is larger. Both bounds are in the table. A metric
 undefined at a sim's last frame (a crater metric before anything is disturbed) leaves that sim out;
-with fewer than two values in an engine the row says so and has no verdict.
+with fewer than two values in an engine the row says so and has no verdict. Beside each verdict stands
+the DEM's own chaos: the relative difference of the configured engine's mean from its rerun of the
+same rows from packings perturbed by ``crosscheck.perturbation`` radii.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import pandas as pd
 from generators import h5md, scenes
 
 COLUMNS = ("scene", "metric", "unit", "engine_a", "engine_b", "n_a", "n_b", "mean_a", "mean_b", "std_a", "std_b",
-           "rel_diff", "tolerance", "combined_se", "allowed", "pass", "note")
+           "rel_diff", "tolerance", "combined_se", "allowed", "pass", "chaos_engine", "chaos_rel_diff", "note")
 
 
 def final_values(scene: str, files: list[Path], body_displacement: float | None = None) -> pd.DataFrame:
@@ -35,9 +37,18 @@ def final_values(scene: str, files: list[Path], body_displacement: float | None 
     return pd.DataFrame(rows)
 
 
-def compare(scene: str, engines: dict[str, list[Path]], tolerance: float,
-            body_displacement: float | None = None) -> pd.DataFrame:
-    """The cross-check table of ``scene`` from each engine's H5MD files (engine -> files, two engines)."""
+def _rel(a: float, b: float) -> float:
+    scale = max(abs(a), abs(b))
+    return abs(a - b) / scale if scale > 0 else 0.0
+
+
+def compare(scene: str, engines: dict[str, list[Path]], tolerance: float, body_displacement: float | None = None,
+            chaos: list[Path] | None = None) -> pd.DataFrame:
+    """The cross-check table of ``scene`` from each engine's H5MD files (engine -> files, two engines).
+
+    ``chaos``: the same sims rerun by one engine from perturbed packings; each metric then also has
+    ``chaos_rel_diff``, the relative difference of that engine's mean from its own perturbed rerun's:
+    the size of difference the DEM's chaos alone makes, beside ``rel_diff`` (no part of the verdict)."""
     if len(engines) != 2:
         raise ValueError(f"the cross-check compares two engines, got {sorted(engines)}")
     (a, files_a), (b, files_b) = sorted(engines.items())
@@ -48,6 +59,13 @@ def compare(scene: str, engines: dict[str, list[Path]], tolerance: float,
     if len(ids_a) < 2:
         raise ValueError(f"{scene}: the cross-check needs at least 2 sims per engine for a spread, got {len(ids_a)}")
     va, vb = (final_values(scene, f, body_displacement) for f in (files_a, files_b))
+    chaos_engine, vc = None, None
+    if chaos:
+        chaos_engine = str(h5md.read(chaos[0]).parameters["engine"])
+        if sorted(Path(f).stem for f in chaos) != ids_a or chaos_engine not in engines:
+            raise ValueError(f"{scene}: the chaos reruns must be the same sims ({ids_a}) in one of {sorted(engines)}")
+        vc = final_values(scene, chaos, body_displacement)
+    base = {a: va, b: vb}.get(chaos_engine)
     units = scenes.get(scene).metrics.units
     rows = []
     for name in scenes.get(scene).metrics.names:
@@ -62,13 +80,15 @@ def compare(scene: str, engines: dict[str, list[Path]], tolerance: float,
             continue
         ma, mb, sa, sb = xa.mean(), xb.mean(), xa.std(ddof=1), xb.std(ddof=1)
         scale = max(abs(ma), abs(mb))
-        rel = abs(ma - mb) / scale if scale > 0 else 0.0
+        rel = _rel(ma, mb)
+        chaos_rel = _rel(float(np.nanmean(base[name])), float(np.nanmean(vc[name]))) if vc is not None else None
         se = math.sqrt(sa**2 / len(xa) + sb**2 / len(xb))
         allowed = max(tolerance * scale, se)
         rows.append({"scene": scene, "metric": name, "unit": units.get(name, ""), "engine_a": a, "engine_b": b,
                      "n_a": len(xa), "n_b": len(xb), "mean_a": ma, "mean_b": mb, "std_a": sa, "std_b": sb,
                      "rel_diff": rel, "tolerance": tolerance, "combined_se": se, "allowed": allowed,
-                     "pass": bool(abs(ma - mb) <= allowed),
+                     "pass": bool(abs(ma - mb) <= allowed), "chaos_engine": chaos_engine,
+                     "chaos_rel_diff": chaos_rel,
                      "note": undefined if len(xa) < len(va) or len(xb) < len(vb) else ""})
     return pd.DataFrame(rows, columns=list(COLUMNS))
 

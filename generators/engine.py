@@ -65,11 +65,25 @@ def prepare(scene: Scene, engine: str, params: dict, out_dir: Path) -> record.Pa
     return rec
 
 
+def perturbed(packing: dem.Particles, kinematic_species: tuple[int, ...], scale: float, seed: int) -> dem.Particles:
+    """The packing with every moving particle displaced by a normal draw of ``scale`` radii per axis
+    (the DEM's own chaos: the same sim rerun from a slightly different state)."""
+    moving = ~np.isin(packing.species, kinematic_species)
+    rng = np.random.default_rng([int(seed), 0x5EED])
+    x = packing.x.copy()
+    x[moving] += rng.normal(0.0, 1.0, x[moving].shape) * (scale * packing.radius[moving])[:, None]
+    return dem.Particles(x, packing.radius, packing.species, packing.groups)
+
+
 def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path) -> record.SimRecord:
     """Run sweep row ``row`` from its settled packing in the row's engine; raw output, the engine's own
-    input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the sim, frame and cause."""
+    input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the sim, frame and cause.
+    A row with ``perturbation`` > 0 starts from the packing perturbed by that many radii (:func:`perturbed`)."""
     out_dir = Path(out_dir)
-    setup = scene.simulate_setup(row, read_packing(packing_dir))
+    packing = read_packing(packing_dir)
+    if row.get("perturbation"):
+        packing = perturbed(packing, scene.kinematic_species, float(row["perturbation"]), row["seed"])
+    setup = scene.simulate_setup(row, packing)
     runner = driver(row["engine"])
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:

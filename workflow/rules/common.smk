@@ -22,9 +22,11 @@ except gconfig.ConfigError as exc:
 
 SCENES = gscenes.names()
 ENGINES = list(gengine.DRIVERS)
-# A run: a scene in its configured engine (results/<scene>/) or in another engine for the cross-check
-# (results/crosscheck/<scene>/<engine>/), on the same sweep rows from the same settled packings.
+# A run: a scene in its configured engine (results/<scene>/), in another engine for the cross-check
+# (results/crosscheck/<scene>/<engine>/), on the same sweep rows from the same settled packings, or in its
+# configured engine from packings perturbed by crosscheck.perturbation radii (results/crosscheck/<scene>/chaos/).
 CROSSCHECK_RUNS = [f"crosscheck/{s}/{e}" for s in SCENES for e in ENGINES if e != CFG[s]["engine"]]
+CROSSCHECK_RUNS += [f"crosscheck/{s}/chaos" for s in SCENES]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -63,8 +65,9 @@ def run_scene(wildcards) -> str:
 
 
 def run_engine(wildcards) -> str:
-    """The engine of a run: the scene's configured one, or the cross-check's."""
-    return wildcards.run.split("/")[2] if wildcards.run.startswith("crosscheck/") else CFG[wildcards.run]["engine"]
+    """The engine of a run: the cross-check's other engine, or the scene's configured one."""
+    parts = wildcards.run.split("/")
+    return parts[2] if len(parts) == 3 and parts[2] in ENGINES else CFG[run_scene(wildcards)]["engine"]
 
 
 def run_dir(scene: str, engine: str) -> str:
@@ -93,8 +96,11 @@ def _physics(scene: str, sim: str) -> dict:
 
 
 def sim_row_json(wildcards) -> str:
-    """A run's sim: the scene's sweep row in the run's engine."""
-    return _json({**_physics(run_scene(wildcards), wildcards.sim), "engine": run_engine(wildcards)})
+    """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run)."""
+    row = {**_physics(run_scene(wildcards), wildcards.sim), "engine": run_engine(wildcards)}
+    if wildcards.run.endswith("/chaos"):
+        row["perturbation"] = CFG["crosscheck"]["perturbation"]
+    return _json(row)
 
 
 def packing_of_sim(wildcards) -> str:
@@ -210,6 +216,11 @@ def other_engine(wildcards) -> str:
 
 def transfer_other_metrics(wildcards) -> str:
     return f"results/crosscheck/{wildcards.scene}/transfer_{other_engine(wildcards)}_metrics.csv"
+
+
+def chaos_sims(wildcards) -> list[str]:
+    """The configured engine's reruns of the cross-checked rows from perturbed packings."""
+    return [f"results/crosscheck/{wildcards.scene}/chaos/sims/{i}.h5" for i in crosscheck_ids(wildcards.scene)]
 
 
 def transfer_sims(wildcards) -> list[str]:

@@ -1,9 +1,10 @@
 # Stage crosscheck: the scene's sweep rows run in both engines (LAMMPS and YADE), each scene metric compared
-# over the sims (docs/crosscheck.md); and the transfer score of the scene's model on the other engine's test sims.
+# over the sims beside the DEM's own chaos (the configured engine from perturbed packings; docs/crosscheck.md); and the transfer score of the scene's model on the other engine's test sims.
 rule crosscheck:
     input:
         lammps=crosscheck_sims("lammps"),
         yade=crosscheck_sims("yade"),
+        chaos=chaos_sims,
     output:
         "results/crosscheck/{scene}.csv",
     params:
@@ -14,7 +15,7 @@ rule crosscheck:
     benchmark:
         "results/crosscheck/benchmarks/{scene}.tsv"
     shell:
-        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps} --yade {input.yade} "
+        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps} --yade {input.yade} --chaos {input.chaos} "
         "--tolerance {params.tolerance} {params.body} --out {output} > {log} 2>&1"
 
 
