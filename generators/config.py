@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import re
 from importlib import resources
 from pathlib import Path
@@ -87,12 +88,16 @@ def _resolve(ref: str, root: dict) -> dict:
     return node
 
 
-def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
+def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = False) -> str:
+    """One line naming the key and what is allowed; empty for an unevaluatedProperties error that only echoes
+    a failure of a known key below it (that failure has its own line), unless ``always``."""
     path = list(error.absolute_path)
     where = ".".join(str(p) for p in path) or "<top level>"
     if error.validator in ("additionalProperties", "unevaluatedProperties"):
         allowed = sorted(_schema_at(schema, path, schema).get("properties", {}))
         extra = sorted(set(error.instance) - set(allowed))
+        if not extra and not always:
+            return ""
         return (
             f"unknown config key {', '.join(repr(where + '.' + k if path else k) for k in extra)}; "
             f"allowed keys{' under ' + where if path else ''}: {', '.join(allowed)}"
@@ -101,7 +106,7 @@ def _describe(error: jsonschema.ValidationError, schema: dict) -> str:
         return f"config key {where!r} is missing {error.message.split(' is a required')[0]}"
     node = _schema_at(schema, path, schema)
     allowed = {k: node[k] for k in (
-        "type", "enum", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum",
+        "type", "enum", "pattern", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum",
         "minItems", "maxItems") if k in node}
     if "items" in node and isinstance(node["items"], dict):
         items = node["items"]
@@ -143,13 +148,27 @@ def defaults() -> dict:
     return copy.deepcopy(_defaults())
 
 
+def _check_finite(node: Any, where: str = "") -> None:
+    """Refuse NaN and infinities anywhere (they compare false against every schema bound, so pass it)."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            _check_finite(value, f"{where}.{key}" if where else str(key))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            _check_finite(value, f"{where}[{i}]")
+    elif isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(f"config key {where!r} = {node!r} is not allowed: every number must be finite")
+
+
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
+    _check_finite(config)
     root = schema()
     validator = jsonschema.Draft202012Validator(root)
-    errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))
+    errors = sorted(validator.iter_errors(config), key=lambda e: [str(p) for p in e.absolute_path])
+    lines = [line for line in (_describe(e, root) for e in errors) if line]
     if errors:
-        raise ConfigError("invalid configuration:\n  " + "\n  ".join(_describe(e, root) for e in errors))
+        raise ConfigError("invalid configuration:\n  " + "\n  ".join(lines or [_describe(errors[0], root, True)]))
     _check_semantics(config)
     return config
 
@@ -163,6 +182,8 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.radius' = {cfg['radius']} must be [min, max] with min <= max")
         if abs(sum(cfg["split"]) - 1.0) > 1e-6:
             raise ConfigError(f"config key '{name}.split' = {cfg['split']} must sum to 1")
+        _check_size(name, scene, cfg, config["limits"]["particles"])
+        _check_contenders(name, cfg)
         if cfg["engine"] not in scene.engines:
             raise ConfigError(f"config key '{name}.engine' = {cfg['engine']!r}: the {name} scene runs in "
                               f"{', '.join(scene.engines)} for now")
@@ -173,6 +194,28 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.protocols' = {bench['protocols']}: a protocol gives K frames and "
                               f"the model reads the last '{name}.model.history' = {bench['model']['history']} of "
                               f"them, so every K must be at least that")
+
+
+def _check_size(name: str, scene, cfg: dict, limit: int) -> None:
+    """Refuse a section whose estimated particle count (from its geometry and radii) exceeds ``limit``."""
+    n = scene.particle_estimate(cfg)
+    if n > limit:
+        mib = n * cfg["frames"] * scene.dim * 2 * 8 / 2 ** 20     # positions and velocities, float64
+        raise ConfigError(
+            f"config section '{name}': radius {cfg['radius']} gives about {n:,} particles per sim (estimated from the "
+            f"geometry and radii; {mib:,.0f} MiB of positions and velocities per recorded sim), above "
+            f"'limits.particles' = {limit:,}; raise that key to run it anyway, or use larger radii")
+
+
+def _check_contenders(name: str, cfg: dict) -> None:
+    """performance.main and .reference must name configured contenders (surrogate and DEM)."""
+    perf = cfg.get("performance")
+    if perf is None:
+        return
+    for key, kind in (("main", "surrogate"), ("reference", "dem")):
+        if perf[key] not in perf[kind]:
+            raise ConfigError(f"config key '{name}.performance.{key}' = {perf[key]!r} is not a {kind} contender; "
+                              f"allowed: {sorted(perf[kind])} (the keys of '{name}.performance.{kind}')")
 
 
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")

@@ -21,6 +21,7 @@ What a scene provides:
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -161,6 +162,11 @@ class Scene(ABC):
 
     # ---- checks --------------------------------------------------------------------------------
 
+    @abstractmethod
+    def particle_estimate(self, cfg: dict) -> int:
+        """About how many particles one sim of the resolved section ``cfg`` holds, from the geometry and the
+        radii alone (no packing is built): checked against ``limits.particles`` before anything runs."""
+
     def check(self, cfg: dict) -> None:
         """Semantic checks of the resolved section (the schema has checked types and ranges); default: none."""
         return None
@@ -175,6 +181,16 @@ class Scene(ABC):
     @property
     def kinematic_names(self) -> list[str]:
         return [self.species[s] for s in self.kinematic_species]
+
+
+LATTICE_SPACING = 2.04     # the loose packings' lattice spacing, in maximum radii (1.02 maximum diameters)
+
+
+def lattice_count(measure: float, r_max: float, dim: int) -> float:
+    """Sites of the loose packings' lattice (spacing LATTICE_SPACING r_max; triangular in 2D, cubic in 3D) in
+    a region of area (2D) or volume (3D) ``measure``."""
+    s = LATTICE_SPACING * r_max
+    return measure / (s * s * math.sqrt(3) / 2 if dim == 2 else s ** 3)
 
 
 def check_range(section: str, key: str, value) -> None:

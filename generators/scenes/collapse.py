@@ -24,7 +24,7 @@ import pandas as pd
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, check_range, trajectory_parameters
+from generators.scene import Scene, check_range, lattice_count, trajectory_parameters
 
 FLOOR, GRAIN = 0, 1
 SETTLE_CHECK = 0.02       # s of physical time between two checks of the settling speed
@@ -206,6 +206,13 @@ class Collapse(Scene):
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         return {"floor_top": floor_top(row)}
+
+    def particle_estimate(self, cfg: dict) -> int:
+        """Lattice sites of the tallest column (FILL nominal heights) plus the floor under the domain."""
+        width = cfg["column_width"]
+        a_max = max(float(a) for a in cfg["sweep"]["aspect"])
+        floor = domain(cfg)[0] / (1.8 * cfg["floor_radius"])
+        return int(lattice_count(width * FILL * a_max * width, cfg["radius"][1], 2) + floor)
 
     def check(self, cfg: dict) -> None:
         check_range(self.name, "sweep.aspect", cfg["sweep"]["aspect"])

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, check_range
+from generators.scene import Scene, check_range, lattice_count
 
 GROUND, METEORITE = 0, 1
 SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
@@ -279,6 +279,13 @@ class Meteorite(Scene):
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         launch = setup.velocity[setup.particles.species == METEORITE][0]
         return {"launch_velocity": [float(v) for v in launch]}
+
+    def particle_estimate(self, cfg: dict) -> int:
+        """Lattice sites of the loose bed (the domain's width, 1.3 bed depths) plus the meteorite's discs."""
+        width, _ = cfg["domain"]
+        r_mean = 0.5 * (cfg["radius"][0] + cfg["radius"][1])
+        cluster = math.pi * cfg["meteorite_radius"] ** 2 / (2 * math.sqrt(3) * r_mean ** 2)
+        return int(lattice_count(width * 1.3 * cfg["bed_depth"], cfg["radius"][1], 2) + cluster)
 
     def check(self, cfg: dict) -> None:
         for key in ("angle", "speed"):

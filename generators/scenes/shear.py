@@ -20,7 +20,7 @@ import numpy as np
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, trajectory_parameters
+from generators.scene import Scene, lattice_count, trajectory_parameters
 
 BOX, SOIL = 0, 1
 LOWER = "lower"            # the packing's group of box spheres in the moving lower half
@@ -225,6 +225,13 @@ class Shear(Scene):
 
     def properties(self, row: dict) -> dict[str, float]:
         return {"young": row["young"]}
+
+    def particle_estimate(self, cfg: dict) -> int:
+        """Lattice sites of the loose pour (FILL_FACTOR box heights) plus the box's wall spheres."""
+        length, width, height = cfg["box"]
+        step = cfg["wall_spacing"] * cfg["wall_radius"]
+        walls = (length * width + 2 * (length + width) * FILL_FACTOR * height) / step ** 2
+        return int(lattice_count(length * width * FILL_FACTOR * height, cfg["radius"][1], 3) + walls)
 
     def check(self, cfg: dict) -> None:
         from generators.scene import check_range

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from generators import contact, dem
-from generators.scene import Scene, check_range
+from generators.scene import Scene, check_range, lattice_count
 
 BEDROCK, STABLE, WEAK = 0, 1, 2
 WEAK_REFERENCE_X = 40.0   # m, where the weak layer's base height is measured
@@ -226,6 +226,16 @@ class Slide(Scene):
         weak = self.contact(row, step[2], row["weak_friction"], row["weak_rolling_friction"])
         return self.setup(row, row["id"], particles, step, _bounds(row), record,
                           max_energy_gain=row["max_energy_gain"], species_contacts={WEAK: weak})
+
+    def particle_estimate(self, cfg: dict) -> int:
+        """Lattice sites between the bedrock profile and the soil surface, plus the bedrock chain and walls."""
+        width, height = cfg["domain"]
+        x = np.linspace(0.0, width, 2001)
+        depth = np.clip(polyline_y(cfg["soil_surface"], x) - polyline_y(cfg["bedrock_profile"], x), 0.0, None)
+        area = float(np.sum(0.5 * (depth[1:] + depth[:-1]) * np.diff(x)))
+        profile = np.asarray(cfg["bedrock_profile"], float)
+        chain = float(np.sum(np.hypot(*np.diff(profile, axis=0).T))) + 2.0 * height
+        return int(lattice_count(area, cfg["radius"][1], 2) + chain / (1.8 * cfg["bedrock_radius"]))
 
     def check(self, cfg: dict) -> None:
         for key in ("weak_base", "weak_thickness", "weak_dip", "weak_friction"):

@@ -1,6 +1,7 @@
 import pytest
+import yaml
 
-from generators import config
+from generators import config, scenes
 
 
 def test_default_config_is_valid_and_scales_fill_sizes():
@@ -67,3 +68,40 @@ def test_meteorite_contact_outside_the_history_is_refused():
 def test_shear_walls_with_holes_wider_than_the_soil_are_refused():
     with pytest.raises(config.ConfigError, match=r"shear\.wall_radius.*shear\.wall_spacing.*holes"):
         config.load({"shear": {"wall_spacing": 2.0, "wall_radius": 0.009}})   # holes 3.7 mm > 3.5 mm soil
+
+
+@pytest.mark.parametrize("override, key", [
+    ({"slide": {"young": float("nan")}}, "slide.young"),
+    ({"slide": {"split": [float("nan"), 0.5, 0.5]}}, r"slide.split\[0\]"),
+    ({"meteorite": {"radius": [2.0, float("inf")]}}, r"meteorite.radius\[1\]"),
+    ({"crosscheck": {"tolerance": float("-inf")}}, "crosscheck.tolerance"),
+])
+def test_non_finite_numbers_are_refused_by_key(override, key):
+    with pytest.raises(config.ConfigError, match=rf"config key '{key}' = .* every number must be finite"):
+        config.load(override)
+
+
+def test_a_nan_in_a_configfile_is_refused_by_key(tmp_path):
+    path = tmp_path / "nan.yaml"
+    text = yaml.safe_dump(config.defaults())
+    assert "young: 1000000000.0" in text
+    path.write_text(text.replace("young: 1000000000.0", "young: .nan", 1))
+    with pytest.raises(config.ConfigError, match=r"config key '\w+\.young' = nan"):
+        config.load(path=path)
+
+
+@pytest.mark.parametrize("scale", ["ci", "default", "paper"])
+def test_the_particle_estimate_follows_the_loose_packings(scale):
+    """The estimate (geometry and radii only) is within [0.8, 2] of the particles the loose packing holds; edge
+    effects make it an overestimate on the small presets."""
+    cfg = config.load({"scale": scale})
+    for name, scene in scenes.registry().items():
+        built = max(len(scene.settle_setup(p).particles.radius) for p in scene.packings(cfg[name]))
+        assert 0.8 <= scene.particle_estimate(cfg[name]) / built <= 2.0, (name, scale)
+
+
+def test_a_huge_particle_count_is_refused_before_anything_is_built():
+    with pytest.raises(config.ConfigError, match=r"'slide': radius \[0.005, 0.005\] gives about 1[0-9],\d{3},\d{3} "
+                                                 r"particles .* MiB .* above 'limits.particles' = 1,000,000"):
+        config.load({"slide": {"radius": [0.005, 0.005]}})
+    config.load({"slide": {"radius": [0.005, 0.005]}, "limits": {"particles": 20_000_000}, "scale": "ci"})

@@ -150,9 +150,12 @@ def runtime_json(wildcards) -> str:
     return _json(_section(wildcards)["runtime"])
 
 
-def body_displacement_arg(wildcards) -> str:
+# Arguments that are optional or many are lists: a rule writes them as {params.x:q}, every item quoted.
+
+
+def body_displacement_arg(wildcards) -> list[str]:
     value = _section(wildcards).get("evaluate", {}).get("body_displacement")
-    return "" if value is None else f"--body-displacement {value}"
+    return [] if value is None else ["--body-displacement", str(value)]
 
 
 def history_length(wildcards) -> int:
@@ -173,8 +176,8 @@ def train_threads(wildcards) -> int:
     return 64 if is_scene(wildcards) else 1    # Snakemake caps threads at --cores
 
 
-def progress_arg(wildcards) -> str:
-    return "" if is_scene(wildcards) else "--no-progress"
+def progress_arg(wildcards) -> list[str]:
+    return [] if is_scene(wildcards) else ["--no-progress"]
 
 
 def evaluated_rollouts(wildcards) -> list[str]:
@@ -185,12 +188,13 @@ def evaluated_rollouts(wildcards) -> list[str]:
     return [f"results/{wildcards.name}/rollouts/{i}.h5" for i in test_ids(wildcards.name)]
 
 
-def evaluation_args(wildcards) -> str:
+def evaluation_args(wildcards) -> list[str]:
     """The split, protocols and rollouts of the evaluate stage."""
     if is_scene(wildcards):
-        return f"--split test --history {history_length(wildcards)} --rollouts results/{wildcards.name}/rollouts"
+        return ["--split", "test", "--history", str(history_length(wildcards)),
+                "--rollouts", f"results/{wildcards.name}/rollouts"]
     bench = CFG[wildcards.name]
-    return f"--split {bench['evaluate']['split']} --history {' '.join(str(k) for k in bench['protocols'])}"
+    return ["--split", bench["evaluate"]["split"], "--history", *(str(k) for k in bench["protocols"])]
 
 
 # ---- cross-check ---------------------------------------------------------------------------------
@@ -252,9 +256,9 @@ def solidgn_source(wildcards, input) -> str:
     return os.path.dirname(input.metadata)
 
 
-def solidgn_limits(wildcards) -> str:
+def solidgn_limits(wildcards) -> list[str]:
     sims = CFG[wildcards.bench]["sims"]
-    return " ".join(f"--limit {split}={n}" for split, n in sims.items() if n is not None)
+    return [arg for split, n in sims.items() if n is not None for arg in ("--limit", f"{split}={n}")]
 
 
 # ---- stability and performance stages ------------------------------------------------------------
@@ -303,14 +307,10 @@ def stressed_row_json(wildcards) -> str:
     return _json(_physics(wildcards.scene, stressed_ids(wildcards)[0]))
 
 
-def dem_stress_factors(wildcards) -> str:
-    return " ".join(f"{f:g}" for f in stage_config(wildcards.scene, "stability")["dem_dt_factors"])
-
-
-def surrogate_stress_args(wildcards) -> dict:
+def surrogate_stress_args(wildcards) -> list[str]:
     s = stage_config(wildcards.scene, "stability")
-    return {"lengths": " ".join(str(n) for n in s["rollout_lengths"]), "noise": s["history_noise"],
-            "seed": s["seed"], "max_overlap": CFG[wildcards.scene]["max_overlap"]}
+    return ["--lengths", *(str(n) for n in s["rollout_lengths"]), "--noise", str(s["history_noise"]),
+            "--seed", str(s["seed"]), "--max-overlap", str(CFG[wildcards.scene]["max_overlap"])]
 
 
 def timed_ids(wildcards) -> list[str]:

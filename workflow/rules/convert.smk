@@ -9,4 +9,4 @@ rule convert:
     benchmark:
         "results/{run}/benchmarks/convert/{sim}.tsv"
     shell:
-        "graphdem convert --raw {input} --out {output} > {log} 2>&1"
+        "graphdem convert --raw {input:q} --out {output:q} > {log} 2>&1"

@@ -15,8 +15,8 @@ rule crosscheck:
     benchmark:
         "results/crosscheck/benchmarks/{scene}.tsv"
     shell:
-        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps} --yade {input.yade} --chaos {input.chaos} "
-        "--tolerance {params.tolerance} {params.body} --out {output} > {log} 2>&1"
+        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps:q} --yade {input.yade:q} --chaos {input.chaos:q} "
+        "--tolerance {params.tolerance:q} {params.body:q} --out {output:q} > {log} 2>&1"
 
 
 rule crosscheck_all:
@@ -29,7 +29,7 @@ rule crosscheck_all:
     benchmark:
         "results/crosscheck/benchmarks/all.tsv"
     shell:
-        "graphdem crosscheck --combine {input} --out {output} > {log} 2>&1"
+        "graphdem crosscheck --combine {input:q} --out {output:q} > {log} 2>&1"
 
 
 rule transfer_evaluate:
@@ -48,8 +48,8 @@ rule transfer_evaluate:
     benchmark:
         "results/crosscheck/{scene}/benchmarks/transfer_{engine}.tsv"
     shell:
-        "graphdem evaluate --checkpoint {input.checkpoint} --data {input.sims} --split test --history {params.history} "
-        "--runtime-json {params.runtime:q} {params.body} --out {output} --no-progress > {log} 2>&1"
+        "graphdem evaluate --checkpoint {input.checkpoint:q} --data {input.sims:q} --split test --history {params.history:q} "
+        "--runtime-json {params.runtime:q} {params.body:q} --out {output:q} --no-progress > {log} 2>&1"
 
 
 rule transfer:
@@ -66,5 +66,5 @@ rule transfer:
     benchmark:
         "results/crosscheck/benchmarks/{scene}_transfer.tsv"
     shell:
-        "graphdem transfer --same {input.same} --other {input.other} --trained-on {params.trained_on} "
-        "--other-engine {params.other} --out {output} > {log} 2>&1"
+        "graphdem transfer --same {input.same:q} --other {input.other:q} --trained-on {params.trained_on:q} "
+        "--other-engine {params.other:q} --out {output:q} > {log} 2>&1"

@@ -15,6 +15,6 @@ rule dataset:
     benchmark:
         "results/{name}/benchmarks/dataset.tsv"
     shell:
-        "graphdem dataset --scene {wildcards.name} --table {input.table} --sims results/{wildcards.name}/sims "
-        "--out-dir results/{wildcards.name}/dataset --connectivity-radius {params.radius} "
-        "--plot {output.plot} > {log} 2>&1"
+        "graphdem dataset --scene {wildcards.name} --table {input.table:q} --sims results/{wildcards.name}/sims "
+        "--out-dir results/{wildcards.name}/dataset --connectivity-radius {params.radius:q} "
+        "--plot {output.plot:q} > {log} 2>&1"

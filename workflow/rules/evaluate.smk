@@ -22,6 +22,6 @@ rule evaluate:
     benchmark:
         "results/{name}/benchmarks/evaluate.tsv"
     shell:
-        "graphdem evaluate --checkpoint {input.checkpoint} --splits {input.splits} {params.evaluation} "
-        "--runtime-json {params.runtime:q} --out {output.metrics} --per-step {output.per_step} "
-        "--plots results/{wildcards.name}/plots {params.body} --no-progress > {log} 2>&1"
+        "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
+        "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"

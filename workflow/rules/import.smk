@@ -13,5 +13,5 @@ rule import_solidgn:
     benchmark:
         "results/{bench}/benchmarks/import.tsv"
     shell:
-        "graphdem import-solidgn {params.source:q} results/{wildcards.bench}/import {params.limits} "
+        "graphdem import-solidgn {params.source:q} results/{wildcards.bench}/import {params.limits:q} "
         "--no-progress > {log} 2>&1"

@@ -19,8 +19,8 @@ rule performance_dem:
         "results/{scene}/benchmarks/performance/dem_{contender}.tsv"
     shell:
         "graphdem performance-dem --scene {wildcards.scene} --name {wildcards.contender} --variant {params.variant:q} "
-        "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth} "
-        "--history {params.history} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
+        "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth:q} "
+        "--history {params.history:q} --repeats {params.repeats:q} {params.body:q} --out {output:q} > {log} 2>&1"
 
 
 rule performance_surrogate:
@@ -42,8 +42,8 @@ rule performance_surrogate:
         "results/{scene}/benchmarks/performance/surrogate_{contender}.tsv"
     shell:
         "graphdem performance-surrogate --name {wildcards.contender} --variant {params.variant:q} "
-        "--checkpoint {input.checkpoint} --data {input.truth} --runtime-json {params.runtime:q} "
-        "--threads {params.threads} --repeats {params.repeats} {params.body} --out {output} > {log} 2>&1"
+        "--checkpoint {input.checkpoint:q} --data {input.truth:q} --runtime-json {params.runtime:q} "
+        "--threads {params.threads:q} --repeats {params.repeats:q} {params.body:q} --out {output:q} > {log} 2>&1"
 
 
 rule performance:
@@ -61,6 +61,6 @@ rule performance:
     benchmark:
         "results/{scene}/benchmarks/performance.tsv"
     shell:
-        "graphdem performance-report --tables {input.tables} --packings {input.packings} --main {params.main} "
-        "--reference {params.reference} --out {output.table} --plot {output.plot} "
+        "graphdem performance-report --tables {input.tables:q} --packings {input.packings:q} --main {params.main:q} "
+        "--reference {params.reference:q} --out {output.table:q} --plot {output.plot:q} "
         "--title '{wildcards.scene}: run time against error' > {log} 2>&1"

@@ -11,5 +11,5 @@ rule physics:
     benchmark:
         "results/{scene}/benchmarks/physics.tsv"
     shell:
-        "graphdem physics --scene {wildcards.scene} --data {input.sims} --out {output.table} --plot {output.plot} "
+        "graphdem physics --scene {wildcards.scene} --data {input.sims:q} --out {output.table:q} --plot {output.plot:q} "
         "> {log} 2>&1"

@@ -11,5 +11,5 @@ rule prepare:
     benchmark:
         "results/{scene}/benchmarks/prepare/{key}.tsv"
     shell:
-        "graphdem prepare --scene {wildcards.scene} --engine {params.engine} --params {params.packing:q} "
-        "--out {output} > {log} 2>&1"
+        "graphdem prepare --scene {wildcards.scene} --engine {params.engine:q} --params {params.packing:q} "
+        "--out {output:q} > {log} 2>&1"

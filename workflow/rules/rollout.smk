@@ -13,5 +13,5 @@ rule rollout:
     benchmark:
         "results/{scene}/benchmarks/rollout/{sim}.tsv"
     shell:
-        "graphdem rollout --checkpoint {input.checkpoint} --data {input.sim} "
+        "graphdem rollout --checkpoint {input.checkpoint:q} --data {input.sim:q} "
         "--out-dir results/{wildcards.scene}/rollouts --threads {threads} --runtime-json {params.runtime:q} > {log} 2>&1"

@@ -12,5 +12,5 @@ rule simulate:
     benchmark:
         "results/{run}/benchmarks/simulate/{sim}.tsv"
     shell:
-        "graphdem simulate --scene {params.scene} --sim {params.sim:q} "
-        "--packing {input.packing} --out {output} > {log} 2>&1"
+        "graphdem simulate --scene {params.scene:q} --sim {params.sim:q} "
+        "--packing {input.packing:q} --out {output:q} > {log} 2>&1"

@@ -7,15 +7,15 @@ rule stability_dem:
         "results/{scene}/stability/dem.csv",
     params:
         sim=stressed_row_json,
-        factors=dem_stress_factors,
+        factors=stage_setting("stability", "dem_dt_factors"),
     threads: 1
     log:
         "results/{scene}/logs/stability_dem.log",
     benchmark:
         "results/{scene}/benchmarks/stability_dem.tsv"
     shell:
-        "graphdem stability-dem --scene {wildcards.scene} --sim {params.sim:q} --packing {input.packing} "
-        "--factors {params.factors} --out {output} > {log} 2>&1"
+        "graphdem stability-dem --scene {wildcards.scene} --sim {params.sim:q} --packing {input.packing:q} "
+        "--factors {params.factors:q} --out {output:q} > {log} 2>&1"
 
 
 rule stability_surrogate:
@@ -33,9 +33,9 @@ rule stability_surrogate:
     benchmark:
         "results/{scene}/benchmarks/stability_surrogate.tsv"
     shell:
-        "graphdem stability-surrogate --checkpoint {input.checkpoint} --data {input.sims} "
-        "--runtime-json {params.runtime:q} --lengths {params.args[lengths]} --noise {params.args[noise]} "
-        "--seed {params.args[seed]} --max-overlap {params.args[max_overlap]} --out {output} > {log} 2>&1"
+        "graphdem stability-surrogate --checkpoint {input.checkpoint:q} --data {input.sims:q} "
+        "--runtime-json {params.runtime:q} {params.args:q} "
+        "--out {output:q} > {log} 2>&1"
 
 
 rule stability:
@@ -49,4 +49,4 @@ rule stability:
     benchmark:
         "results/{scene}/benchmarks/stability.tsv"
     shell:
-        "graphdem combine --union --tables {input.dem} {input.surrogate} --out {output} > {log} 2>&1"
+        "graphdem combine --union --tables {input.dem:q} {input.surrogate:q} --out {output:q} > {log} 2>&1"

@@ -9,4 +9,4 @@ rule sweep:
     benchmark:
         "results/{scene}/benchmarks/sweep.tsv"
     shell:
-        "graphdem sweep --scene {wildcards.scene} --config-json {params.cfg:q} --out {output} > {log} 2>&1"
+        "graphdem sweep --scene {wildcards.scene} --config-json {params.cfg:q} --out {output:q} > {log} 2>&1"

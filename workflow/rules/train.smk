@@ -20,6 +20,6 @@ rule train:
     benchmark:
         "results/{name}/benchmarks/train.tsv"
     shell:
-        "graphdem train --stats {input.stats} --splits {input.splits} --model-json {params.model:q} "
+        "graphdem train --stats {input.stats:q} --splits {input.splits:q} --model-json {params.model:q} "
         "--train-json {params.train:q} --out-dir results/{wildcards.name}/model --threads {threads} "
-        "{params.progress} > {log} 2>&1"
+        "{params.progress:q} > {log} 2>&1"
