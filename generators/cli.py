@@ -237,6 +237,31 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_inspect)
 
 
+#: the argparse destinations a subcommand writes (files, or folders it writes files into); every other path is read
+OUTPUTS = ("out", "out_dir", "per_step", "plot", "plots", "dest")
+DIRECTORY_OUTPUTS = ("out_dir", "plots", "dest")
+
+
+def _paths(value) -> list[Path]:
+    items = value if isinstance(value, list | tuple) else [value]
+    return [Path(v) for v in items if isinstance(v, Path)]
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse a command whose output is one of its inputs, or a folder it writes into that directly holds one
+    (compared as resolved paths), before anything is read or written."""
+    outputs = {k: _paths(v)[0] for k, v in vars(args).items() if k in OUTPUTS and _paths(v)}
+    inputs = {(k, p.resolve()): p for k, v in vars(args).items() if k not in OUTPUTS for p in _paths(v)}
+    for out_key, out in outputs.items():
+        target = out.resolve()
+        for (in_key, resolved), given in inputs.items():
+            inside = out_key in DIRECTORY_OUTPUTS and resolved.parent == target
+            if resolved == target or inside:
+                flag, src = "--" + out_key.replace("_", "-"), "--" + in_key.replace("_", "-")
+                raise SystemExit(f"graphdem {args.command}: {flag} {out} would overwrite the input {src} {given}"
+                                 f"{' (a file in that folder)' if inside else ''}; write the output elsewhere")
+
+
 def errors() -> tuple[type[Exception], ...]:
     """The generators' errors that `graphdem` reports as one line (exit status 1)."""
     from generators import blowup, contact, dem, h5md, record

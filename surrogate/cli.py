@@ -358,6 +358,7 @@ def main(argv: list[str] | None = None) -> int:
     from surrogate.errors import CheckpointError, TrainingDiverged
 
     args = build_parser().parse_args(argv)
+    gcli.check_outputs(args)
     try:
         args.func(args)
     except (*gcli.errors(), CheckpointError, TrainingDiverged) as exc:

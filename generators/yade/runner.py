@@ -1,4 +1,11 @@
-"""Run Debian's ``yade -n -x`` (no GUI, exit when done, one thread) on graphdem's YADE script."""
+"""Run Debian's ``yade -n -x`` (no GUI, exit when done, one thread) on graphdem's YADE script.
+
+YADE's launcher opens two servers when it runs as a program: a Python prompt (port 9000) and an
+XML-RPC info server (port 21000), on every interface, the prompt's cookie printed to the log. graphdem
+needs neither, so the launcher is run by its own interpreter under another module name (``LAUNCH``):
+the same option parsing, engine and script execution, without the servers (YADE's launcher starts them
+only under ``__main__``). Nothing listens on any socket while a YADE job runs (tested).
+"""
 
 from __future__ import annotations
 
@@ -35,6 +42,23 @@ def executable() -> str:
     return path
 
 
+# YADE's launcher (sys.argv[2]) imported as a module, not run as __main__: it parses its options, sets the
+# threads and loads YADE, but starts no server and no session; then the script (sys.argv[1]) runs in its
+# namespace with the arguments the launcher leaves, as the launcher's own session would run it.
+LAUNCH = ("import runpy, sys; script = sys.argv.pop(1); sys.argv = sys.argv[1:]; "
+          "ns = runpy.run_path(sys.argv[0], run_name='yade_without_servers'); sys.argv[0] = script; "
+          "exec(compile(open(script).read(), script, 'exec'), ns)")
+
+
+def interpreter(exe: str) -> list[str]:
+    """The command YADE's launcher ``exe`` names on its first line (Debian: /usr/bin/python3.x)."""
+    with open(exe, "rb") as fh:
+        first = fh.readline().decode(errors="replace").strip()
+    if not first.startswith("#!") or "python" not in first:
+        raise YadeError(f"{exe} is not YADE's Python launcher (first line {first!r}); set {EXECUTABLE_ENV} to it")
+    return shlex.split(first[2:])
+
+
 def version() -> str:
     return _version(executable())
 
@@ -54,7 +78,8 @@ def run(job: dict, workdir: Path, name: str) -> tuple[dict, EngineRun]:
     script.write_text(resources.files("generators.yade").joinpath("scripts", SCRIPT).read_text())
     out = workdir / f"{name}.npz"
     (workdir / f"{name}.json").write_text(json.dumps({**job, "out": str(out)}))
-    cmd = [executable(), "-n", "-x", "-j", "1", SCRIPT, f"{name}.json"]
+    exe = executable()
+    cmd = [*interpreter(exe), "-c", LAUNCH, SCRIPT, exe, "-n", "-x", "-j", "1", SCRIPT, f"{name}.json"]
     # Debian's python runs yade: the pipeline's virtual environment must not leak into it
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
     env.update(OMP_NUM_THREADS="1", DISPLAY="")

@@ -10,8 +10,9 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
   every sphere are recorded every ``every`` steps, with the moving spheres' kinetic energy and the total
   contact force on the fixed ones.
 
-``yade`` opens a TCP Python prompt and an XML-RPC server when it starts; the first thing this
-script does is close both, and it records any listening socket it still holds in its output.
+graphdem starts YADE's launcher without its TCP Python prompt and XML-RPC server (generators/yade/runner.py).
+As a second guard the script shuts down any socket server it finds at its start (counted in its output: 0)
+and records every listening socket the process holds, which the driver refuses.
 """
 
 import gc
@@ -41,7 +42,8 @@ from yade.wrapper import (
 
 
 def close_servers():
-    """Shut down the socket servers yade started (TCP prompt, XML-RPC info); return how many."""
+    """Shut down any socket server in this process (YADE's TCP prompt, XML-RPC info); return how many (graphdem
+    starts YADE without them, so 0)."""
     closed = 0
     for obj in gc.get_objects():
         if isinstance(obj, socketserver.BaseServer):
