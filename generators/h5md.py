@@ -74,6 +74,16 @@ class Trajectory:
         t, n, d = pos.shape
         if t < 1 or n < 1:
             raise H5MDError(f"{where}: position has no frames or no particles (shape {pos.shape})")
+        if pos.shape[0] < 2:
+            raise H5MDError(f"{where}: position has one frame (shape {pos.shape}); a trajectory needs at least 2")
+        for name in ("position", "time", "radius", "mass"):
+            if np.asarray(getattr(self, name)).dtype.kind not in "fiu":
+                raise H5MDError(f"{where}: {name} must be numeric, got dtype {np.asarray(getattr(self, name)).dtype}")
+        species = np.asarray(self.species)
+        if species.dtype.kind not in "iu":
+            raise H5MDError(f"{where}: species must be integers, got dtype {species.dtype}")
+        if species.size and species.min() < 0:
+            raise H5MDError(f"{where}: species must be non-negative, found {species.min()}")
         for name, arr, shape in (
             ("time", self.time, (t,)), ("step", self.step, (t,)),
             ("species", self.species, (n,)), ("radius", self.radius, (n,)),
@@ -187,8 +197,44 @@ def _need(f: h5py.File, key: str, path: Path):
     return f[key]
 
 
+#: dtype kinds (numpy ``dtype.kind``) and number of axes each dataset must have
+DATASETS = {
+    "particles/all/position/value": ("fi", 3), "particles/all/position/time": ("fi", 1),
+    "particles/all/position/step": ("iu", 1), "particles/all/species": ("iu", 1),
+    "particles/all/radius": ("fi", 1), "particles/all/mass": ("fi", 1), "particles/all/kinematic": ("b", 1),
+    "particles/all/box/edges": ("fi", 1), "particles/all/box/lower": ("fi", 1), "particles/all/properties": ("fi", 2),
+}
+KIND_NAMES = {"f": "float", "i": "integer", "u": "unsigned integer", "b": "boolean"}
+#: the most an array may declare, uncompressed, per byte of the file (a compressed file can declare far more
+#: than it holds); every file may declare MIN_DECLARED_BYTES
+DECLARED_PER_FILE_BYTE, MIN_DECLARED_BYTES = 200, 256 * 2 ** 20
+
+
+def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
+    """The dataset ``key``, checked for type, dtype, number of axes and declared size before anything is read."""
+    node = _need(f, key, path)
+    kinds, ndim = DATASETS[key]
+    if not isinstance(node, h5py.Dataset):
+        raise H5MDError(f"{path}: {key} must be a dataset, found a {type(node).__name__}")
+    if node.dtype.kind not in kinds:
+        raise H5MDError(f"{path}: {key} has dtype {node.dtype}; expected "
+                        f"{' or '.join(KIND_NAMES[k] for k in kinds)} values")
+    if node.ndim != ndim:
+        raise H5MDError(f"{path}: {key} has shape {node.shape}; expected {ndim} axes")
+    declared = int(np.prod(node.shape, dtype=np.float64)) * node.dtype.itemsize
+    if declared > limit:
+        raise H5MDError(f"{path}: {key} declares shape {node.shape} ({declared / 2**20:,.0f} MiB), more than "
+                        f"{limit / 2**20:,.0f} MiB for a file of {path.stat().st_size / 2**20:,.2f} MiB; refused "
+                        f"before reading")
+    return node
+
+
 def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
-    """Read and validate an H5MD file; raise H5MDError naming the file and the problem."""
+    """Read and validate an H5MD file; raise H5MDError naming the file, the field and what was expected.
+
+    Every dataset's type, dtype, axes and declared size are checked before it is read, so a small file that
+    declares a huge array is refused without allocating it.
+    """
     path = Path(path)
     if not path.is_file():
         raise H5MDError(f"{path}: no such file")
@@ -196,43 +242,59 @@ def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = 
         f = h5py.File(path, "r")
     except OSError as exc:
         raise H5MDError(f"{path}: not a readable HDF5 file (corrupt or truncated?): {exc}") from exc
+    limit = max(MIN_DECLARED_BYTES, DECLARED_PER_FILE_BYTE * path.stat().st_size)
     try:
         with f:
-            version = tuple(int(v) for v in _need(f, "h5md", path).attrs.get("version", ()))
+            version = tuple(int(v) for v in np.atleast_1d(_need(f, "h5md", path).attrs.get("version", ())))
             if version[:1] != (1,):
                 raise H5MDError(f"{path}: unsupported H5MD version {version}, expected 1.x")
             sel = frames if frames is not None else slice(None)
             box = _need(f, "particles/all/box", path)
-            edges = np.asarray(_need(f, "particles/all/box/edges", path))
-            lower = np.asarray(box["lower"]) if "lower" in box else np.zeros_like(edges)
-            part = f["particles/all"]
+            if not isinstance(box, h5py.Group):
+                raise H5MDError(f"{path}: particles/all/box must be a group")
+            sets = {k: _dataset(f, k, path, limit) for k in DATASETS
+                    if k in f or k not in ("particles/all/box/lower", "particles/all/properties")}
+            t, n, d = sets["particles/all/position/value"].shape
+            expected = {"particles/all/position/time": (t,), "particles/all/position/step": (t,),
+                        "particles/all/species": (n,), "particles/all/radius": (n,), "particles/all/mass": (n,),
+                        "particles/all/kinematic": (n,), "particles/all/box/edges": (d,),
+                        "particles/all/box/lower": (d,)}
+            for key, shape in expected.items():
+                if key in sets and sets[key].shape != shape:
+                    raise H5MDError(f"{path}: {key} has shape {sets[key].shape}; expected {shape} for positions of "
+                                    f"shape {(t, n, d)}")
+            edges = sets["particles/all/box/edges"][()]
+            lower = sets["particles/all/box/lower"][()] if "particles/all/box/lower" in sets else np.zeros_like(edges)
             props = names = None
-            if "properties" in part:
-                props = np.asarray(part["properties"])
+            if "particles/all/properties" in sets:
+                props = sets["particles/all/properties"][()]
                 names = tuple(n.decode() if isinstance(n, bytes) else str(n)
-                              for n in part["properties"].attrs.get("names", ()))
+                              for n in np.atleast_1d(sets["particles/all/properties"].attrs.get("names", ())))
             observables = {}
             if "observables" in f:
                 for name, grp in f["observables"].items():
-                    observables[name] = np.asarray(grp["value"])[sel]
+                    value = grp.get("value") if isinstance(grp, h5py.Group) else None
+                    if not isinstance(value, h5py.Dataset) or value.dtype.kind not in "fiu" or value.shape != (t,):
+                        raise H5MDError(f"{path}: observables/{name}/value must be a numeric dataset of shape ({t},)")
+                    observables[name] = value[()][sel]
             traj = Trajectory(
-                position=np.asarray(_need(f, "particles/all/position/value", path)[sel]),
-                time=np.asarray(_need(f, "particles/all/position/time", path)[sel]),
-                step=np.asarray(_need(f, "particles/all/position/step", path)[sel]),
-                species=np.asarray(_need(f, "particles/all/species", path)),
-                radius=np.asarray(_need(f, "particles/all/radius", path)),
-                mass=np.asarray(_need(f, "particles/all/mass", path)),
-                kinematic=np.asarray(_need(f, "particles/all/kinematic", path)),
+                position=sets["particles/all/position/value"][sel],
+                time=sets["particles/all/position/time"][sel],
+                step=sets["particles/all/position/step"][sel],
+                species=sets["particles/all/species"][()],
+                radius=sets["particles/all/radius"][()],
+                mass=sets["particles/all/mass"][()],
+                kinematic=sets["particles/all/kinematic"][()],
                 box_lower=lower, box_upper=lower + edges,
                 boundary=tuple(b.decode() if isinstance(b, bytes) else str(b)
-                               for b in box.attrs.get("boundary", ())),
+                               for b in np.atleast_1d(box.attrs.get("boundary", ()))),
                 properties=props, property_names=names or (),
                 parameters={k: _from_attr(v) for k, v in f["parameters"].attrs.items()}
-                if "parameters" in f else {},
+                if isinstance(f.get("parameters"), h5py.Group) else {},
                 observables=observables,
             )
     except H5MDError:
         raise
-    except (OSError, KeyError, ValueError, TypeError) as exc:
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
         raise H5MDError(f"{path}: unreadable H5MD content (corrupt?): {exc}") from exc
     return traj.validate(str(path), allow_nonfinite)

@@ -38,7 +38,15 @@ def load(path: str | Path) -> dict:
                               f"data are accepted): {exc}") from exc
     if not isinstance(data, dict) or "json" not in data or "model" not in data:
         raise CheckpointError(f"{path}: not a Graph-DEM checkpoint (missing 'model' or 'json')")
-    data["json"] = json.loads(data["json"])
+    try:
+        data["json"] = json.loads(data["json"])
+    except (TypeError, json.JSONDecodeError) as exc:
+        raise CheckpointError(f"{path}: its 'json' entry is not JSON text: {exc}") from exc
+    meta = data["json"]
+    if not (isinstance(meta, dict) and all(isinstance(meta.get(k), dict) for k in ("stats", "model"))):
+        raise CheckpointError(f"{path}: its metadata lacks the 'stats' and 'model' of a Graph-DEM checkpoint")
+    if not isinstance(data["model"], dict):
+        raise CheckpointError(f"{path}: its 'model' entry is not a state dict of tensors")
     return data
 
 
@@ -49,7 +57,7 @@ def simulator_from(path: str | Path) -> tuple[LearnedSimulator, dict]:
     try:
         simulator = LearnedSimulator(meta["stats"], meta["model"])
         simulator.load_state_dict(data["model"])
-    except (KeyError, RuntimeError) as exc:
+    except (KeyError, RuntimeError, TypeError, ValueError, AttributeError) as exc:
         raise CheckpointError(f"{path}: weights do not fit the model it describes: {exc}") from exc
     return simulator.eval(), meta
 

@@ -70,7 +70,8 @@ def cmd_rollout(args) -> None:
     simulator, rt = _runtime(args, simulator)
     sha = checkpoint.digest(args.checkpoint)
     for path in evaluate.data_files(args.data):
-        sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [])
+        sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [],
+                       allow_other_scene=args.allow_other_scene)
         result = rollout.rollout(simulator, sim, runtime=rt)
         out = rollout.write(Path(args.out_dir) / f"{sim.id}.h5", sim, result, args.checkpoint, sha)
         per_frame = result.seconds / max(result.n_predicted, 1)
@@ -102,7 +103,8 @@ def cmd_evaluate(args) -> None:
         table, steps, sims = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
                                                body_displacement=args.body_displacement, threads=args.threads,
                                                progress=not args.no_progress, split=split, split_note=note,
-                                               runtime=_runtime_config(args))
+                                               runtime=_runtime_config(args),
+                                               allow_other_scene=args.allow_other_scene)
         tables.append(table)
         per_step.append(steps)
         first = first or sims
@@ -150,7 +152,8 @@ def cmd_stability_surrogate(args) -> None:
     _logging()
     torch.set_num_threads(max(1, args.threads))
     simulator, meta = checkpoint.simulator_from(args.checkpoint)
-    sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or []) for p in evaluate.data_files(args.data)]
+    sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or [], allow_other_scene=args.allow_other_scene)
+            for p in evaluate.data_files(args.data)]
     rt = _runtime_config(args, required_by="stability-surrogate")
     table = stability.surrogate_report(simulator, rt, sims, args.lengths, args.noise, args.seed, args.max_overlap)
     with atomic_path(args.out) as tmp:
@@ -204,6 +207,8 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
     p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
     p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--allow-other-scene", action="store_true",
+                   help="score sims of another scene (or other kinematic species) than the checkpoint was trained on")
     p.add_argument("--runtime-json", type=_json,
                    help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
                         "precision, sleep_speed; docs/performance.md); default: compute as in training")

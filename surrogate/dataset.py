@@ -75,9 +75,13 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
             vel, acc = _Moments(traj.dim), _Moments(traj.dim)
             meta = {"dim": traj.dim, "bounds": np.stack([traj.box_lower, traj.box_upper], 1).tolist(),
                     "frame_interval": float(np.median(np.diff(traj.time))),
-                    "n_frames": traj.n_frames, "property_names": list(traj.property_names)}
+                    "n_frames": traj.n_frames, "property_names": list(traj.property_names),
+                    "scene": str(traj.parameters.get("scene", "unknown"))}
         elif traj.dim != meta["dim"]:
             raise ValueError(f"{path}: dimension {traj.dim} differs from the dataset's {meta['dim']}")
+        elif str(traj.parameters.get("scene", "unknown")) != meta["scene"]:
+            raise ValueError(f"{path}: scene {traj.parameters.get('scene')!r} differs from the dataset's "
+                             f"{meta['scene']!r} (one dataset holds one scene)")
         moving = ~traj.kinematic
         p = np.asarray(traj.position, np.float64)[:, moving]
         v = np.diff(p, axis=0)

@@ -59,12 +59,13 @@ def code_version() -> str:
 
 
 def data_files(data: list[Path]) -> list[Path]:
-    """H5MD files named directly or found (``*.h5``, sorted) in the given folders."""
+    """H5MD files named directly or found (``*.h5``, sorted) in the given folders; hidden files (a writer's
+    temporaries, ``.<name>.tmp-<pid>.h5``) are not sims and are skipped."""
     files: list[Path] = []
     for item in data:
         item = Path(item)
         if item.is_dir():
-            found = sorted(item.glob("*.h5"))
+            found = sorted(p for p in item.glob("*.h5") if not p.name.startswith("."))
             if not found:
                 raise FileNotFoundError(f"{item}: no *.h5 files in this folder")
             files.extend(found)
@@ -106,11 +107,29 @@ def read_rollout(path: Path, sha: str, history: int) -> h5md.Trajectory:
     return traj
 
 
-def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray, truth, prediction, k: int):
+def blown_up_from(prediction: np.ndarray, traj: h5md.Trajectory, history: int) -> int | None:
+    """The first predicted frame at which the rollout has blown up: a moving particle non-finite, or farther
+    outside the box than the box is long on that axis (no granular flow goes there); None if it never does."""
+    moving = ~np.asarray(traj.kinematic, bool)
+    p = np.asarray(prediction, np.float64)[history:, moving]
+    lower, upper = np.asarray(traj.box_lower, np.float64), np.asarray(traj.box_upper, np.float64)
+    extent = upper - lower
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(p).all(axis=(1, 2)) | ((p < lower - extent) | (p > upper + extent)).any(axis=(1, 2))
+    return int(history + np.argmax(bad)) if bad.any() else None
+
+
+def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray, truth, prediction, k: int,
+              blown: int | None = None):
+    """Rows of one metric; from frame ``blown`` on (a blown-up rollout) the prediction is NaN and flagged."""
     n = len(prediction)
+    frame = np.arange(k, k + n)
+    flagged = np.zeros(n, bool) if blown is None else frame >= blown
     return pd.DataFrame({"scene": scene, "method": method, "sim": sim, "metric": metric,
-                         "tau": np.arange(1, n + 1), "frame": np.arange(k, k + n), "time": times[k:k + n],
-                         "truth": np.nan if truth is None else truth, "prediction": prediction})
+                         "tau": np.arange(1, n + 1), "frame": frame, "time": times[k:k + n],
+                         "truth": np.nan if truth is None else truth,
+                         "prediction": np.where(flagged, np.nan, np.asarray(prediction, np.float64)),
+                         "blown_up": flagged})
 
 
 def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[str, np.ndarray], history: int,
@@ -124,22 +143,24 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
     truth_values = metrics(truth) if metrics else {}
     rows = []
     for method, prediction in predictions.items():
-        rows.append(_per_step(scene, method, sim, MSE, traj.time, None,
-                              rollout_mse(prediction, truth, moving, history), history))
-        if metrics is None:
-            continue
-        for name, values in metrics(prediction).items():
-            rows.append(_per_step(scene, method, sim, name, traj.time, truth_values[name][history:],
-                                  values[history:], history))
-        for name, values in metrics.compare(prediction, truth).items():
-            rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history))
+        blown = blown_up_from(prediction, traj, history)
+        with np.errstate(invalid="ignore", over="ignore"):
+            rows.append(_per_step(scene, method, sim, MSE, traj.time, None,
+                                  rollout_mse(prediction, truth, moving, history), history, blown))
+            if metrics is None:
+                continue
+            for name, values in metrics(prediction).items():
+                rows.append(_per_step(scene, method, sim, name, traj.time, truth_values[name][history:],
+                                      values[history:], history, blown))
+            for name, values in metrics.compare(prediction, truth).items():
+                rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history, blown))
     return rows
 
 
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, threads: int = 1, progress: bool = True,
-             split: str = "test", split_note: str = "", runtime: Runtime | None = None
-             ) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+             split: str = "test", split_note: str = "", runtime: Runtime | None = None,
+             allow_other_scene: bool = False) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
     ``split`` and ``split_note`` name the split the sims come from in every row written; ``runtime``
@@ -157,7 +178,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
     per_step, sims = [], []
     for path in tqdm(data_files(data), desc="evaluate", unit="sim", disable=not progress):
         traj = h5md.read(path)
-        sim = load_sim(path, meta["stats"], props, traj)
+        sim = load_sim(path, meta["stats"], props, traj, allow_other_scene)
         if rollouts_dir is not None:
             predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha, history)
             if predicted.position.shape != traj.position.shape:
@@ -205,20 +226,21 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
     for (method, metric), group in steps.groupby(["method", "metric"], sort=False):
         scene = group["scene"].iloc[0]
         per_sim = group.groupby("sim", sort=False)["prediction"].mean(skipna=False)   # a blow-up stays NaN
+        flagged = group.loc[group["blown_up"], "sim"].unique() if "blown_up" in group else []
+        blown_sims = list(dict.fromkeys([*flagged, *(per_sim.index[per_sim.isna()] if metric == MSE else [])]))
         base = {"scene": scene, "method": method, "metric": metric, "n_sims": int(group["sim"].nunique()),
-                "n_frames": int(len(group))}
+                "n_frames": int(len(group)), "n_blown_up": len(blown_sims), "blown_up_sims": " ".join(blown_sims)}
         if metric == MSE:
-            blown = int(per_sim.isna().sum())
             rows.append({**base, "sim": "all", "mse": float(per_sim.mean(skipna=False)),
-                         "mean_prediction": float(per_sim.mean(skipna=False)), "n_blown_up": blown,
-                         "blown_up_sims": " ".join(per_sim.index[per_sim.isna()])})
+                         "mean_prediction": float(per_sim.mean(skipna=False))})
             for sim, value in per_sim.items():
                 rows.append({**base, "sim": sim, "mse": float(value), "mean_prediction": float(value),
                              "n_sims": 1, "n_frames": int((group["sim"] == sim).sum()),
-                             "n_blown_up": int(np.isnan(value))})
+                             "n_blown_up": int(sim in blown_sims), "blown_up_sims": sim if sim in blown_sims else ""})
         elif group["truth"].notna().any():
             truth, prediction = group["truth"].to_numpy(), group["prediction"].to_numpy()
             acc, left_out = accuracy(truth, prediction)
+            acc = float("nan") if blown_sims else acc       # a blown-up rollout has no accuracy, only its flag
             kept = np.isfinite(truth) & (truth != 0)          # the frames Acc averages over
             rows.append({**base, "sim": "all", "acc_percent": acc, "mean_truth": float(truth[kept].mean()),
                          "mean_prediction": float(prediction[kept].mean()), "n_frames_left_out": left_out})
@@ -226,8 +248,9 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
             # Dis: NaN where the true body is empty (left out, counted), +inf where the prediction blew up
             values = group["prediction"].to_numpy()
             defined = ~np.isnan(values)
-            rows.append({**base, "sim": "all", "mean_prediction": float(values[defined].mean()) if defined.any()
-                         else float("nan"), "n_frames_left_out": int((~defined).sum())})
+            rows.append({**base, "sim": "all", "mean_prediction": float(values[defined].mean())
+                         if defined.any() and not blown_sims else float("nan"),
+                         "n_frames_left_out": int((~defined).sum())})
     columns = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
                "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims"]
     table = pd.DataFrame(rows).reindex(columns=columns)
@@ -252,7 +275,7 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
         table.to_csv(tmp, index=False)
     if per_step_csv is not None:
         extra = [c for c in steps.columns if c not in ("scene", "method", "sim", "metric", "tau", "frame", "time",
-                                                       "truth", "prediction")]
+                                                       "truth", "prediction", "blown_up")]
         both = pd.concat([mean_per_step(steps).assign(**{c: steps[c].iloc[0] for c in extra}), steps],
                          ignore_index=True)
         with atomic_path(Path(per_step_csv)) as tmp:
@@ -285,6 +308,8 @@ def report(table: pd.DataFrame) -> str:
             value = f"MSE {row['mse']:.4g} m^2"
             if row["n_blown_up"]:
                 value += f" ({int(row['n_blown_up'])} blown up: {row['blown_up_sims']})"
+        elif row.get("n_blown_up", 0) and row["metric"] != MSE and pd.isna(row["mean_prediction"]):
+            value = f"undefined: {int(row['n_blown_up'])} rollout(s) blew up ({row['blown_up_sims']})"
         elif pd.notna(row["acc_percent"]):
             value = (f"Acc {row['acc_percent']:.1f} %  (truth {row['mean_truth']:.4g}, "
                      f"prediction {row['mean_prediction']:.4g}, {int(row['n_frames_left_out'])} frames left out)")

@@ -50,15 +50,31 @@ def normalised_properties(traj: h5md.Trajectory, names: list[str], stats: dict) 
     return torch.tensor(np.stack(columns, axis=1), dtype=torch.float32)
 
 
-def load_sim(path: str | Path, stats: dict, property_names: list[str] | None = None,
-             traj: h5md.Trajectory | None = None) -> Sim:
-    path = Path(path)
-    traj = traj if traj is not None else h5md.read(path)
+def check_scene(path: Path, traj: h5md.Trajectory, stats: dict, allow_other_scene: bool = False) -> None:
+    """Refuse a sim the model was not trained for: another dimension, species beyond its types, or (unless
+    ``allow_other_scene``) another scene or other kinematic species than its training data."""
     if traj.dim != stats["dim"]:
         raise ValueError(f"{path}: dimension {traj.dim} differs from the model's {stats['dim']}")
     if int(traj.species.max()) >= stats["n_types"]:
         raise ValueError(f"{path}: species {int(traj.species.max())} is beyond the {stats['n_types']} types "
-                         f"the model was trained with")
+                         f"the model was trained with (0..{stats['n_types'] - 1})")
+    if allow_other_scene:
+        return
+    scene, trained = str(traj.parameters.get("scene", "unknown")), stats.get("scene")
+    if trained is not None and scene != trained:
+        raise ValueError(f"{path}: a {scene} sim, but the model was trained on {trained} data; give "
+                         f"--allow-other-scene to score it anyway")
+    kinematic = sorted(int(s) for s in np.unique(traj.species[traj.kinematic]))
+    if "kinematic_species" in stats and not set(kinematic) <= set(stats["kinematic_species"]):
+        raise ValueError(f"{path}: kinematic species {kinematic}, but the model was trained with kinematic species "
+                         f"{stats['kinematic_species']}; give --allow-other-scene to score it anyway")
+
+
+def load_sim(path: str | Path, stats: dict, property_names: list[str] | None = None,
+             traj: h5md.Trajectory | None = None, allow_other_scene: bool = False) -> Sim:
+    path = Path(path)
+    traj = traj if traj is not None else h5md.read(path)
+    check_scene(path, traj, stats, allow_other_scene)
     return Sim(id=path.stem, path=path, position=torch.tensor(np.asarray(traj.position, np.float32)),
                types=torch.tensor(np.asarray(traj.species), dtype=torch.long),
                kinematic=torch.tensor(np.asarray(traj.kinematic, bool)),

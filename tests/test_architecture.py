@@ -69,7 +69,7 @@ def test_no_scene_is_named_outside_its_own_module_and_config():
                 continue
             offenders += [f"{path.relative_to(ROOT)}: {n}" for n in _scene_names_in_python(path, names)]
     word = re.compile(r"\b(" + "|".join(sorted(names)) + r")\b")
-    for path in [ROOT / "Snakefile", *sorted((ROOT / "workflow" / "rules").glob("*.smk"))]:
+    for path in [ROOT / "workflow" / "Snakefile", *sorted((ROOT / "workflow" / "rules").glob("*.smk"))]:
         for number, line in enumerate(path.read_text().splitlines(), 1):
             code = line.split("#", 1)[0]
             offenders += [f"{path.relative_to(ROOT)}:{number}: {m}" for m in word.findall(code)]
@@ -79,7 +79,7 @@ def test_no_scene_is_named_outside_its_own_module_and_config():
 @pytest.mark.engine
 @pytest.mark.parametrize("scene", scenes.names())
 def test_every_registered_scene_is_served_by_every_stage(tmp_path, scene):
-    proc = subprocess.run([SNAKEMAKE, "-n", "-s", str(ROOT / "Snakefile"), "-d", str(tmp_path), "--config",
+    proc = subprocess.run([SNAKEMAKE, "-n", "-s", str(ROOT / "workflow" / "Snakefile"), "-d", str(tmp_path), "--config",
                            "scale=ci", "--", f"results/{scene}/metrics.csv"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     table = (proc.stdout + proc.stderr).split("Job stats:")[1].split("total")[0]

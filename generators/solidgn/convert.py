@@ -32,6 +32,8 @@ def _array(data: dict, key: str, path: Path, ndim: int) -> np.ndarray:
     if not isinstance(value, np.ndarray) or value.ndim != ndim:
         raise ValueError(f"{path}: {key} must be a {ndim}-dimensional numpy array, got "
                          f"{type(value).__name__} of shape {getattr(value, 'shape', None)}")
+    if value.dtype.kind not in "fiu":
+        raise ValueError(f"{path}: {key} must hold numbers, got dtype {value.dtype}")
     if not np.all(np.isfinite(value)):
         raise ValueError(f"{path}: {key} has non-finite values")
     return value
@@ -47,6 +49,9 @@ def trajectory(path: Path, metadata: dict, name: str) -> h5md.Trajectory:
     radius = _array(data, "particle_r", path, 1)
     mass = _array(data, "particle_m", path, 1)
     t, n, d = position.shape
+    if t < 2 or n < 1:
+        raise ValueError(f"{path}: position has shape {position.shape}; a trajectory needs at least 2 frames and "
+                         f"1 particle")
     if d != metadata["dim"] or any(len(a) != n for a in (types, radius, mass)):
         raise ValueError(f"{path}: position has shape {position.shape} but particle_type/r/m have "
                          f"{len(types)}/{len(radius)}/{len(mass)} entries and the metadata's dim is {metadata['dim']}")
@@ -63,6 +68,33 @@ def trajectory(path: Path, metadata: dict, name: str) -> h5md.Trajectory:
                     float(metadata.get("default_connectivity_radius", np.nan)),
                     "species_names": {"0": "fixed wall", "1": "soil type 1", "2": "soil type 2"},
                     "solidgn_metadata": metadata})
+
+
+def read_metadata(path: Path) -> dict:
+    """A Solid-GN metadata.json, checked: dim 2 or 3, bounds [[lo, hi]] per axis, dt > 0 (all finite)."""
+    try:
+        meta = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON: {exc}") from exc
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: expected a JSON object with dim, bounds and dt, got {type(meta).__name__}")
+    dim = meta.get("dim")
+    if dim not in (2, 3) or isinstance(dim, bool):
+        raise ValueError(f"{path}: 'dim' must be 2 or 3, got {dim!r}")
+    try:
+        bounds = np.asarray(meta.get("bounds"), float)
+        dt = float(meta.get("dt"))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: 'bounds' must be [[lo, hi]] per axis and 'dt' a number: {exc}") from exc
+    if bounds.shape != (dim, 2) or not np.all(np.isfinite(bounds)) or not np.all(bounds[:, 1] > bounds[:, 0]):
+        raise ValueError(f"{path}: 'bounds' must be {dim} finite [lo, hi] pairs with lo < hi, "
+                         f"got {meta.get('bounds')!r}")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"{path}: 'dt' must be a positive number, got {meta.get('dt')!r}")
+    radius = meta.get("default_connectivity_radius", 1.0)
+    if isinstance(radius, bool) or not isinstance(radius, int | float) or not (np.isfinite(radius) and radius > 0):
+        raise ValueError(f"{path}: 'default_connectivity_radius' must be a positive number, got {radius!r}")
+    return meta
 
 
 def _number(path: Path) -> tuple[int, str]:
@@ -85,22 +117,23 @@ def import_dataset(src: str | Path, dest: str | Path, progress: bool = True,
     if not meta_path.is_file():
         raise FileNotFoundError(f"{src}: no metadata.json; expected a Solid-GN dataset folder "
                                 f"(metadata.json and train/, valid/, test/ of .pkl files)")
-    metadata = json.loads(meta_path.read_text())
+    metadata = read_metadata(meta_path)
     rows = []
-    for split in SPLITS:
-        files = sorted((src / split).glob("*.pkl"), key=_number) if (src / split).is_dir() else []
-        if limits.get(split) is not None:
-            files = files[: int(limits[split])]
-        for path in tqdm(files, desc=f"import {src.name}/{split}", unit="sim", disable=not progress):
-            sim_id = f"{split}_{_number(path)[1]}"
-            out = dest / "sims" / f"{sim_id}.h5"
-            h5md.write(out, trajectory(path, metadata, src.name))
-            rows.append({"id": sim_id, "split": split, "path": str(out), "source": str(path)})
-    if not any(r["split"] == "train" for r in rows):
-        raise FileNotFoundError(f"{src}: no train/*.pkl files")
-    table = pd.DataFrame(rows)
-    with atomic_path(dest / "splits.csv") as tmp:
-        table.to_csv(tmp, index=False)
-    with atomic_path(dest / "metadata.json") as tmp:
-        tmp.write_text(json.dumps(metadata, indent=2))
+    with atomic_path(dest) as tmp:          # all or nothing: a refused pickle leaves no half import behind
+        tmp.mkdir()
+        for split in SPLITS:
+            files = sorted((p for p in (src / split).glob("*.pkl") if not p.name.startswith(".")), key=_number) \
+                if (src / split).is_dir() else []
+            if limits.get(split) is not None:
+                files = files[: int(limits[split])]
+            for path in tqdm(files, desc=f"import {src.name}/{split}", unit="sim", disable=not progress):
+                sim_id = f"{split}_{_number(path)[1]}"
+                h5md.write(tmp / "sims" / f"{sim_id}.h5", trajectory(path, metadata, src.name))
+                rows.append({"id": sim_id, "split": split, "path": str(dest / "sims" / f"{sim_id}.h5"),
+                             "source": str(path)})
+        if not any(r["split"] == "train" for r in rows):
+            raise FileNotFoundError(f"{src}: no train/*.pkl files")
+        table = pd.DataFrame(rows)
+        table.to_csv(tmp / "splits.csv", index=False)
+        (tmp / "metadata.json").write_text(json.dumps(metadata, indent=2))
     return table

@@ -18,7 +18,8 @@ def ci_results(tmp_path_factory) -> Path:
     targets = [f"results/{scene}/metrics.csv" for scene in ("meteorite", "shear", "slide")]
     targets += ["results/crosscheck.csv",
                 *(f"results/crosscheck/{scene}_transfer.csv" for scene in ("slide", "shear"))]
-    proc = subprocess.run([SNAKEMAKE, "-c2", "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--config", "scale=ci",
+    snakefile = str(ROOT / "workflow" / "Snakefile")
+    proc = subprocess.run([SNAKEMAKE, "-c2", "-s", snakefile, "-d", str(wd), "--config", "scale=ci",
                            "--", *targets], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return wd / "results"

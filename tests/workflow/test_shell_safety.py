@@ -106,7 +106,7 @@ def test_a_path_with_shell_syntax_is_one_argument_and_runs_nothing(tmp_path):
     fake_solidgn(evil)
     work = tmp_path / "work"
     work.mkdir()
-    cmd = [SNAKEMAKE, "-c1", "-p", "-s", str(ROOT / "Snakefile"), "-d", str(work),
+    cmd = [SNAKEMAKE, "-c1", "-p", "-s", str(ROOT / "workflow" / "Snakefile"), "-d", str(work),
            "results/slide_samer/import/splits.csv", "--config", "scale=ci", f"solidgn_root={evil}"]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]

@@ -20,7 +20,8 @@ pytestmark = pytest.mark.engine
 
 
 def snakemake(workdir, *args, config=(SMALL,)):
-    cmd = [SNAKEMAKE, *args, "-s", str(ROOT / "Snakefile"), "-d", str(workdir), "--config", "scale=ci", *config]
+    snakefile = str(ROOT / "workflow" / "Snakefile")
+    cmd = [SNAKEMAKE, *args, "-s", snakefile, "-d", str(workdir), "--config", "scale=ci", *config]
     return subprocess.run(cmd, capture_output=True, text=True)
 
 

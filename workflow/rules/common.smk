@@ -4,8 +4,10 @@
 import json
 import os
 import sys
+from pathlib import Path
 
 from generators import config as gconfig
+from generators import locks as glocks
 from generators import engine as gengine
 from generators import scenes as gscenes
 from generators import sweep as gsweep
@@ -14,6 +16,11 @@ from generators.scene import SURROGATE_KEYS
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+
+# A run killed with SIGKILL leaves its locks: with no other Snakemake working here, the same command resumes.
+if glocks.remove_stale_locks(Path.cwd()):
+    print("graphdem: removed the locks of a killed Snakemake run (no other Snakemake works in this folder)",
+          file=sys.stderr)
 
 try:
     CFG = gconfig.load(config)           # the package's defaults, with --config / --configfile on top
