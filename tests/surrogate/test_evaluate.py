@@ -128,3 +128,31 @@ def test_combine_stacks_tables_and_refuses_different_columns(tmp_path):
     pd.DataFrame({"metric": ["rollout MSE"], "mse": [40.0]}).to_csv(tmp_path / "c.csv", index=False)
     with pytest.raises(ValueError, match="c.csv: columns"):
         combine([tmp_path / "a.csv", tmp_path / "c.csv"])
+
+
+def test_every_metric_of_a_blown_up_rollout_is_nan_and_flagged_never_finite_garbage(tiny_dataset):
+    """A rollout that goes non-finite, or far outside the box while staying finite, has no Acc and no scene
+    metric: NaN, with the sim named in n_blown_up/blown_up_sims; the exact prediction scores 100 %."""
+    from surrogate.evaluate import MSE, blown_up_from, score, summarise
+    table = tiny_dataset["split_table"]
+    path = table.loc[table["split"] == "test", "path"].iloc[0]
+    traj = h5md.read(path)
+    truth = np.asarray(traj.position, np.float64)
+    moving = ~traj.kinematic
+    nan, far = truth.copy(), truth.copy()
+    nan[7:, moving] = np.nan
+    far[8:, moving] *= 1.0e6
+    assert blown_up_from(nan, traj, 6) == 7 and blown_up_from(far, traj, 6) == 8
+    assert blown_up_from(truth, traj, 6) is None
+    steps = pd.concat(score("s", traj, truth, {"exact": truth, "nan": nan, "far": far}, 6), ignore_index=True)
+    overall = summarise(steps).query("sim == 'all'").set_index(["method", "metric"])
+    scene_metrics = [m for m in overall.loc["exact"].index if m != MSE]
+    assert {"Slide Num", "Mean Ht", "Dis"} <= set(scene_metrics)
+    for method in ("nan", "far"):
+        rows = overall.loc[method]
+        assert (rows["n_blown_up"] == 1).all() and (rows["blown_up_sims"] == "s").all()
+        assert rows["acc_percent"].isna().all() and rows.loc[scene_metrics, "mean_prediction"].isna().all()
+        assert np.isnan(rows.loc[MSE, "mse"])
+    exact = overall.loc["exact"]
+    assert (exact["n_blown_up"] == 0).all() and exact["acc_percent"].dropna().eq(100.0).all()
+    assert exact.loc[MSE, "mse"] == 0.0
