@@ -156,3 +156,10 @@ def test_every_metric_of_a_blown_up_rollout_is_nan_and_flagged_never_finite_garb
     exact = overall.loc["exact"]
     assert (exact["n_blown_up"] == 0).all() and exact["acc_percent"].dropna().eq(100.0).all()
     assert exact.loc[MSE, "mse"] == 0.0
+
+
+def test_a_folder_of_sims_is_read_without_hidden_temporaries(tmp_path):
+    from surrogate.evaluate import data_files
+    for name in ("slide_0001.h5", "slide_0000.h5", ".slide_0002.tmp-4242.h5", "notes.txt"):
+        (tmp_path / name).write_bytes(b"")
+    assert [p.name for p in data_files([tmp_path])] == ["slide_0000.h5", "slide_0001.h5"]
