@@ -76,12 +76,13 @@ class Trajectory:
             raise H5MDError(f"{where}: position has no frames or no particles (shape {pos.shape})")
         if pos.shape[0] < 2:
             raise H5MDError(f"{where}: position has one frame (shape {pos.shape}); a trajectory needs at least 2")
-        for name in ("position", "time", "radius", "mass"):
-            if np.asarray(getattr(self, name)).dtype.kind not in "fiu":
-                raise H5MDError(f"{where}: {name} must be numeric, got dtype {np.asarray(getattr(self, name)).dtype}")
+        for name in ("position", "time", "radius", "mass", "box_lower", "box_upper", "properties", "step", "species"):
+            kinds = "iu" if name in ("step", "species") else "fiu"
+            value = getattr(self, name)
+            if value is not None and np.asarray(value).dtype.kind not in kinds:
+                raise H5MDError(f"{where}: {name} must hold {'integers' if kinds == 'iu' else 'numbers'}, got dtype "
+                                f"{np.asarray(value).dtype}")
         species = np.asarray(self.species)
-        if species.dtype.kind not in "iu":
-            raise H5MDError(f"{where}: species must be integers, got dtype {species.dtype}")
         if species.size and species.min() < 0:
             raise H5MDError(f"{where}: species must be non-negative, found {species.min()}")
         for name, arr, shape in (
@@ -197,30 +198,21 @@ def _need(f: h5py.File, key: str, path: Path):
     return f[key]
 
 
-#: dtype kinds (numpy ``dtype.kind``) and number of axes each dataset must have
-DATASETS = {
-    "particles/all/position/value": ("fi", 3), "particles/all/position/time": ("fi", 1),
-    "particles/all/position/step": ("iu", 1), "particles/all/species": ("iu", 1),
-    "particles/all/radius": ("fi", 1), "particles/all/mass": ("fi", 1), "particles/all/kinematic": ("b", 1),
-    "particles/all/box/edges": ("fi", 1), "particles/all/box/lower": ("fi", 1), "particles/all/properties": ("fi", 2),
-}
-KIND_NAMES = {"f": "float", "i": "integer", "u": "unsigned integer", "b": "boolean"}
 #: the most an array may declare, uncompressed, per byte of the file (a compressed file can declare far more
 #: than it holds); every file may declare MIN_DECLARED_BYTES
 DECLARED_PER_FILE_BYTE, MIN_DECLARED_BYTES = 200, 256 * 2 ** 20
+REQUIRED = ("particles/all/position/value", "particles/all/position/time", "particles/all/position/step",
+            "particles/all/species", "particles/all/radius", "particles/all/mass", "particles/all/kinematic",
+            "particles/all/box/edges")
+OPTIONAL = ("particles/all/box/lower", "particles/all/properties")
 
 
 def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
-    """The dataset ``key``, checked for type, dtype, number of axes and declared size before anything is read."""
+    """The dataset ``key``, checked to be one and to declare at most ``limit`` bytes before anything is read
+    (dtypes and shapes are checked by Trajectory.validate once read)."""
     node = _need(f, key, path)
-    kinds, ndim = DATASETS[key]
     if not isinstance(node, h5py.Dataset):
         raise H5MDError(f"{path}: {key} must be a dataset, found a {type(node).__name__}")
-    if node.dtype.kind not in kinds:
-        raise H5MDError(f"{path}: {key} has dtype {node.dtype}; expected "
-                        f"{' or '.join(KIND_NAMES[k] for k in kinds)} values")
-    if node.ndim != ndim:
-        raise H5MDError(f"{path}: {key} has shape {node.shape}; expected {ndim} axes")
     declared = int(np.prod(node.shape, dtype=np.float64)) * node.dtype.itemsize
     if declared > limit:
         raise H5MDError(f"{path}: {key} declares shape {node.shape} ({declared / 2**20:,.0f} MiB), more than "
@@ -232,8 +224,9 @@ def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
 def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
     """Read and validate an H5MD file; raise H5MDError naming the file, the field and what was expected.
 
-    Every dataset's type, dtype, axes and declared size are checked before it is read, so a small file that
-    declares a huge array is refused without allocating it.
+    Every dataset is checked to be one and its declared size bounded before it is read, so a small file that
+    declares a huge array is refused without allocating it; dtypes and shapes are checked by
+    Trajectory.validate, the one check for files read and written.
     """
     path = Path(path)
     if not path.is_file():
@@ -252,17 +245,8 @@ def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = 
             box = _need(f, "particles/all/box", path)
             if not isinstance(box, h5py.Group):
                 raise H5MDError(f"{path}: particles/all/box must be a group")
-            sets = {k: _dataset(f, k, path, limit) for k in DATASETS
-                    if k in f or k not in ("particles/all/box/lower", "particles/all/properties")}
-            t, n, d = sets["particles/all/position/value"].shape
-            expected = {"particles/all/position/time": (t,), "particles/all/position/step": (t,),
-                        "particles/all/species": (n,), "particles/all/radius": (n,), "particles/all/mass": (n,),
-                        "particles/all/kinematic": (n,), "particles/all/box/edges": (d,),
-                        "particles/all/box/lower": (d,)}
-            for key, shape in expected.items():
-                if key in sets and sets[key].shape != shape:
-                    raise H5MDError(f"{path}: {key} has shape {sets[key].shape}; expected {shape} for positions of "
-                                    f"shape {(t, n, d)}")
+            sets = {k: _dataset(f, k, path, limit) for k in (*REQUIRED, *(k for k in OPTIONAL if k in f))}
+            frames_shape = sets["particles/all/position/time"].shape
             edges = sets["particles/all/box/edges"][()]
             lower = sets["particles/all/box/lower"][()] if "particles/all/box/lower" in sets else np.zeros_like(edges)
             props = names = None
@@ -274,8 +258,10 @@ def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = 
             if "observables" in f:
                 for name, grp in f["observables"].items():
                     value = grp.get("value") if isinstance(grp, h5py.Group) else None
-                    if not isinstance(value, h5py.Dataset) or value.dtype.kind not in "fiu" or value.shape != (t,):
-                        raise H5MDError(f"{path}: observables/{name}/value must be a numeric dataset of shape ({t},)")
+                    numeric = isinstance(value, h5py.Dataset) and value.dtype.kind in "fiu"
+                    if not numeric or value.shape != frames_shape:
+                        raise H5MDError(f"{path}: observables/{name}/value must be a numeric dataset of shape "
+                                        f"{frames_shape}, one value per frame")
                     observables[name] = value[()][sel]
             traj = Trajectory(
                 position=sets["particles/all/position/value"][sel],

@@ -183,13 +183,15 @@ class Scene(ABC):
         return [self.species[s] for s in self.kinematic_species]
 
 
-LATTICE_SPACING = 2.04     # the loose packings' lattice spacing, in maximum radii (1.02 maximum diameters)
+def lattice_spacing(r_max: float) -> float:
+    """The spacing of every scene's loose packing lattice: 1.02 maximum diameters, so nothing overlaps."""
+    return 2.0 * r_max * 1.02
 
 
 def lattice_count(measure: float, r_max: float, dim: int) -> float:
-    """Sites of the loose packings' lattice (spacing LATTICE_SPACING r_max; triangular in 2D, cubic in 3D) in
-    a region of area (2D) or volume (3D) ``measure``."""
-    s = LATTICE_SPACING * r_max
+    """Sites of the loose packings' lattice (triangular in 2D, cubic in 3D) in a region of area (2D) or
+    volume (3D) ``measure``."""
+    s = lattice_spacing(r_max)
     return measure / (s * s * math.sqrt(3) / 2 if dim == 2 else s ** 3)
 
 

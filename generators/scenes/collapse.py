@@ -24,7 +24,7 @@ import pandas as pd
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, check_range, lattice_count, trajectory_parameters
+from generators.scene import Scene, check_range, lattice_count, lattice_spacing, trajectory_parameters
 
 FLOOR, GRAIN = 0, 1
 SETTLE_CHECK = 0.02       # s of physical time between two checks of the settling speed
@@ -68,7 +68,7 @@ def loose_column(cfg: dict, aspect: float, seed) -> dem.Particles:
     rng = np.random.default_rng(seed)
     r_min, r_max = cfg["radius"]
     width, base = cfg["column_width"], floor_top(cfg)
-    spacing = 2.0 * r_max * 1.02
+    spacing = lattice_spacing(r_max)
     rows = np.arange(base + r_max, base + FILL * aspect * width, spacing * math.sqrt(3) / 2)
     xy = [(x, y) for row, y in enumerate(rows)
           for x in np.arange(r_max + (row % 2) * spacing / 2, width - r_max + 1e-12, spacing)]

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, check_range, lattice_count
+from generators.scene import Scene, check_range, lattice_count, lattice_spacing
 
 GROUND, METEORITE = 0, 1
 SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
@@ -37,7 +37,7 @@ def loose_bed(cfg: dict, seed) -> dem.Particles:
     rng = np.random.default_rng(seed)
     r_min, r_max = cfg["radius"]
     width, _ = cfg["domain"]
-    spacing = 2.0 * r_max * 1.02
+    spacing = lattice_spacing(r_max)
     row_h = spacing * math.sqrt(3) / 2
     xy = []
     for row, y in enumerate(np.arange(r_max, 1.3 * cfg["bed_depth"], row_h)):

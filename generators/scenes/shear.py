@@ -20,7 +20,7 @@ import numpy as np
 
 from generators import contact, dem
 from generators.config import ConfigError
-from generators.scene import Scene, lattice_count, trajectory_parameters
+from generators.scene import Scene, lattice_count, lattice_spacing, trajectory_parameters
 
 BOX, SOIL = 0, 1
 LOWER = "lower"            # the packing's group of box spheres in the moving lower half
@@ -66,7 +66,7 @@ def loose_soil(cfg: dict, seed) -> dem.Particles:
     rng = np.random.default_rng(seed)
     r_min, r_max = cfg["radius"]
     length, width, height = cfg["box"]
-    spacing = 2.0 * r_max * 1.02
+    spacing = lattice_spacing(r_max)
     axes = [np.arange(r_max, extent - r_max + 1e-12, spacing) for extent in (length, width, FILL_FACTOR * height)]
     xyz = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     radius = rng.uniform(r_min, r_max, len(xyz))

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from generators import contact, dem
-from generators.scene import Scene, check_range, lattice_count
+from generators.scene import Scene, check_range, lattice_count, lattice_spacing
 
 BEDROCK, STABLE, WEAK = 0, 1, 2
 WEAK_REFERENCE_X = 40.0   # m, where the weak layer's base height is measured
@@ -63,7 +63,7 @@ def loose_packing(cfg: dict, seed) -> dem.Particles:
     rb = cfg["bedrock_radius"]
     width, _ = cfg["domain"]
     bed_xy, bed_r = bedrock_particles(cfg)
-    spacing = 2.0 * r_max * 1.02
+    spacing = lattice_spacing(r_max)
     row_h = spacing * math.sqrt(3) / 2
     soil = []
     y_min = float(np.min(np.asarray(cfg["bedrock_profile"])[:, 1]))
