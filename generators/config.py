@@ -221,16 +221,19 @@ def _check_contenders(name: str, cfg: dict) -> None:
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
-def coerce_numbers(value: Any) -> Any:
-    """Turn numeric strings into numbers.
+def coerce_scalars(value: Any) -> Any:
+    """Turn numeric strings into numbers, and ``true``/``false`` (any case) into booleans.
 
-    YAML 1.1 (PyYAML, and so Snakemake's ``--config``) reads ``5.0e9`` as a string; a user who
-    writes ``--config slide='{young: 5.0e9}'`` means a number.
+    YAML 1.1 (PyYAML, and so Snakemake's ``--config``) reads ``5.0e9`` as a string, and Snakemake reads
+    every scalar inside ``--config slide='{...}'`` as a string; a user who writes
+    ``--config slide='{young: 5.0e9}'`` means a number, and ``overwrite_scale=true`` means a boolean.
     """
     if isinstance(value, dict):
-        return {k: coerce_numbers(v) for k, v in value.items()}
+        return {k: coerce_scalars(v) for k, v in value.items()}
     if isinstance(value, list):
-        return [coerce_numbers(v) for v in value]
+        return [coerce_scalars(v) for v in value]
+    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+        return value.strip().lower() == "true"
     if isinstance(value, str) and _FLOAT.match(value.strip()):
         number = float(value)
         return int(number) if number.is_integer() and "." not in value and "e" not in value.lower() else number
@@ -240,7 +243,7 @@ def coerce_numbers(value: Any) -> Any:
 def resolve(config: dict) -> dict:
     """Fill the chosen scale preset of every section into ``config`` (user keys win), drop the presets,
     and validate the result."""
-    config = coerce_numbers(config)
+    config = coerce_scalars(config)
     scale = config.get("scale", "default")
     if scale not in ("ci", "default", "paper"):
         raise ConfigError(f"config key 'scale' = {scale!r} is not allowed; allowed: ['ci', 'default', 'paper']")

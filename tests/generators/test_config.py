@@ -57,6 +57,13 @@ def test_yaml11_exponent_strings_become_numbers():
     assert config.load({"slide": {"frames": "12"}})["slide"]["frames"] == 12
 
 
+def test_true_and_false_strings_become_booleans_and_other_strings_stay():
+    # Snakemake reads every scalar inside `--config slide='{...}'` as a string, and `x=true` too.
+    assert config.load({"overwrite_scale": "true"})["overwrite_scale"] is True
+    assert config.load({"overwrite_scale": "False"})["overwrite_scale"] is False
+    assert config.coerce_scalars({"a": ["TRUE", "yes", "12", "truth"]}) == {"a": [True, "yes", 12, "truth"]}
+
+
 def test_meteorite_contact_outside_the_history_is_refused():
     paper = config.load({"scale": "paper"})["meteorite"]
     assert paper["contact_frame"] < paper["model"]["history"]

@@ -160,6 +160,19 @@ def test_a_stage_a_scene_has_no_section_for_stops_with_what_exists(tmp_path, sta
     assert not (tmp_path / "results").exists()
 
 
+def test_a_run_at_another_scale_is_refused_before_anything_runs(tmp_path):
+    (tmp_path / "results" / "slide").mkdir(parents=True)
+    (tmp_path / "results" / "slide" / "scale.txt").write_text("default\n")
+    proc = snakemake(tmp_path, TARGET, "-c1", config=())           # a real run, not a dry run: nothing starts
+    assert proc.returncode != 0
+    assert ("results/slide holds results of scale=default; this run asks for scale=ci and would overwrite them"
+            in proc.stdout + proc.stderr)
+    assert sorted(p.name for p in (tmp_path / "results" / "slide").iterdir()) == ["scale.txt"]
+    assert "sweep" in planned(snakemake(tmp_path, TARGET, "-n", config=("overwrite_scale=true",)))
+    # another scene's folder is not this run's business
+    assert "sweep" in planned(snakemake(tmp_path, "results/meteorite/dataset/stats.json", "-n", config=()))
+
+
 SOLIDGN = ROOT.parent / "shared" / "datasets" / "solidgn"
 BENCH = "results/slide_small/metrics.csv"
 
@@ -225,6 +238,7 @@ def test_scene_outputs(ci_results, scene, dim, metrics):
         assert (res / "plots" / name).stat().st_size > 5_000
     for rule in ("sweep", "dataset", "train", "evaluate"):
         assert (res / "benchmarks" / f"{rule}.tsv").is_file() and (res / "logs" / f"{rule}.log").is_file()
+    assert (res / "scale.txt").read_text() == "ci\n"         # the folder records the scale it was built at
 
 
 def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):

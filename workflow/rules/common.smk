@@ -9,6 +9,7 @@ from pathlib import Path
 from generators import config as gconfig
 from generators import locks as glocks
 from generators import engine as gengine
+from generators import scales as gscales
 from generators import scenes as gscenes
 from generators import sweep as gsweep
 from generators.packing import packing_key
@@ -37,6 +38,8 @@ CROSSCHECK_RUNS += [f"crosscheck/{s}/chaos" for s in SCENES]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
+# The results folders this run involves (filled while the DAG is built); each records the run's scale.
+SCALE_FOLDERS = set()
 
 
 wildcard_constraints:
@@ -51,6 +54,21 @@ wildcard_constraints:
 
 def _json(value) -> str:
     return json.dumps(value, sort_keys=True)
+
+
+def kept_scale(wildcards) -> list[str]:
+    """Input function of a scene's or benchmark's first stage: no input, but refuses a run at another scale
+    than its results folder records (generators/scales.py), before anything runs."""
+    folder = f"results/{getattr(wildcards, 'scene', None) or wildcards.bench}"
+    gscales.check(folder, CFG["scale"], CFG["overwrite_scale"])
+    SCALE_FOLDERS.add(folder)
+    return []
+
+
+def record_scales() -> None:
+    """When a run starts: every results folder it involves now holds the run's scale."""
+    for folder in sorted(SCALE_FOLDERS):
+        gscales.record(folder, CFG["scale"])
 
 
 def is_scene(wildcards) -> bool:

@@ -3,6 +3,7 @@
 rule import_solidgn:
     input:
         metadata=solidgn_metadata,
+        scale=kept_scale,
     output:
         splits="results/{bench}/import/splits.csv",
     params:

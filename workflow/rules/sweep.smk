@@ -1,5 +1,7 @@
 # Stage sweep: one row per simulation with every concrete DEM parameter and its seed.
 rule sweep:
+    input:
+        kept_scale,
     output:
         "results/{scene}/sweep.csv",
     params:
