@@ -25,17 +25,46 @@ def json_arg(text: str) -> dict:
         raise argparse.ArgumentTypeError(f"not valid JSON: {exc}") from exc
 
 
-def cmd_config(args) -> None:
+def config_options(p: argparse.ArgumentParser) -> None:
+    """``--config FILE`` and ``--set KEY=VALUE``: the workflow's config keys, on top of the package defaults."""
+    p.add_argument("--config", dest="config_file", type=Path, metavar="FILE", action="append",
+                   help="YAML file of config keys, as Snakemake's --configfile takes them (repeatable; later "
+                        "files win)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override one key by its dotted path, e.g. --set scale=ci --set slide.young=5e9 "
+                        "--set slide.train.lr=1e-3 (repeatable; wins over --config)")
+
+
+def resolved_config(args) -> dict:
+    """The package defaults, the ``--config`` files and the ``--set`` keys, resolved and validated."""
     import yaml
-    overrides = {}
+    overrides: dict = {}
+    for path in args.config_file or []:
+        try:
+            data = yaml.safe_load(Path(path).read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise gconfig.ConfigError(f"--config {path}: cannot be read as YAML: {exc}") from exc
+        if not isinstance(data, dict):
+            raise gconfig.ConfigError(f"--config {path}: must hold a mapping of config keys, got "
+                                      f"{type(data).__name__}")
+        overrides = gconfig.deep_update(overrides, data)
     for item in args.set or []:
-        key, _, value = item.partition("=")
-        node = overrides
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise gconfig.ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. --set slide.young=5e9")
+        node: dict = {}
+        leaf_parent = node
         *parents, leaf = key.split(".")
         for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = yaml.safe_load(value)
-    print(yaml.safe_dump(gconfig.load(overrides), sort_keys=False))
+            leaf_parent = leaf_parent.setdefault(part, {})
+        leaf_parent[leaf] = yaml.safe_load(value)
+        overrides = gconfig.deep_update(overrides, node)
+    return gconfig.load(overrides)
+
+
+def cmd_config(args) -> None:
+    import yaml
+    print(yaml.safe_dump(resolved_config(args), sort_keys=False))
 
 
 def cmd_sweep(args) -> None:
@@ -142,9 +171,10 @@ def cmd_physics(args) -> None:
 def add_commands(sub) -> None:
     """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
     names = scenes.names()
-    p = sub.add_parser("config", help="print the resolved, validated configuration")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override, e.g. --set scale=ci --set slide.young=5e9 (repeatable)")
+    p = sub.add_parser("config", help="print the resolved, validated configuration",
+                       description="The package defaults with the chosen scale preset, --config files and --set keys "
+                                   "on top, validated against the schema: what the workflow runs with.")
+    config_options(p)
     p.set_defaults(func=cmd_config)
 
     p = sub.add_parser("sweep", help="write the sweep table (one row per simulation)")

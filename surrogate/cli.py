@@ -51,10 +51,35 @@ def _logging() -> None:
     import logging
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s: %(message)s")
 
+def _train_sections(args) -> tuple[dict, dict, Path, Path, Path]:
+    """The model and train config, and the stats, splits and output folder, of ``graphdem train``: from the
+    resolved config's section of --scene (the workflow's keys), or from the rule's resolved sections."""
+    if args.model_json is not None or args.train_json is not None:
+        if args.model_json is None or args.train_json is None or args.scene or args.config_file or args.set:
+            raise SystemExit("graphdem train: --model-json and --train-json (the workflow's resolved sections) go "
+                             "together and replace --scene, --config and --set")
+        model, train_cfg, where = args.model_json, args.train_json, None
+    else:
+        if not args.scene:
+            raise SystemExit("graphdem train: give --scene (a scene or public benchmark: "
+                             f"{', '.join(scenes.names() + sorted(gcli.gconfig.BENCHMARKS))}) to train with its "
+                             "model and train config")
+        section = gcli.resolved_config(args)[args.scene]
+        model, train_cfg, where = section["model"], section["train"], Path("results") / args.scene
+    paths = []
+    for value, default in ((args.stats, "dataset/stats.json"), (args.splits, "dataset/splits.csv"),
+                           (args.out_dir, "model")):
+        if value is None and where is None:
+            raise SystemExit("graphdem train: --stats, --splits and --out-dir are needed with --model-json")
+        paths.append(Path(value) if value is not None else where / default)
+    return model, train_cfg, *paths
+
+
 def cmd_train(args) -> None:
     from surrogate import train
+    model, train_cfg, stats, splits, out_dir = _train_sections(args)
     _logging()
-    state = train.train(args.stats, args.splits, args.model_json, args.train_json, args.out_dir,
+    state = train.train(stats, splits, model, train_cfg, out_dir,
                         threads=args.threads, fresh=args.fresh, max_steps=args.max_steps,
                         progress=not args.no_progress)
     print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
@@ -256,12 +281,21 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
                        description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
                                    "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
-                                   "used to resume) and history.csv into --out-dir.")
-    p.add_argument("--stats", type=Path, required=True, help="dataset stats.json")
-    p.add_argument("--splits", type=Path, required=True, help="dataset splits.csv")
-    p.add_argument("--model-json", type=_json, required=True, help="the scene's model config (JSON)")
-    p.add_argument("--train-json", type=_json, required=True, help="the scene's train config (JSON)")
-    p.add_argument("--out-dir", type=Path, required=True)
+                                   "used to resume) and history.csv into --out-dir. The model and training "
+                                   "settings are the --scene's section of the workflow's config: the package "
+                                   "defaults, --config files and --set keys, e.g. graphdem train --scene slide "
+                                   "--set scale=ci --set slide.train.lr=1e-3 (graphdem config prints the result).",
+                       epilog="Paths default to the workflow's: results/<scene>/dataset/{stats.json,splits.csv} "
+                              "and results/<scene>/model/.")
+    p.add_argument("--scene", choices=names + sorted(gcli.gconfig.BENCHMARKS),
+                   help="the scene or public benchmark whose model and train sections to use")
+    gcli.config_options(p)
+    p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<scene>/dataset/stats.json)")
+    p.add_argument("--splits", type=Path, help="dataset splits.csv (default results/<scene>/dataset/splits.csv)")
+    p.add_argument("--out-dir", type=Path, help="checkpoint folder (default results/<scene>/model)")
+    # the workflow passes its already resolved sections (internal; users give --scene/--config/--set)
+    p.add_argument("--model-json", type=_json, help=argparse.SUPPRESS)
+    p.add_argument("--train-json", type=_json, help=argparse.SUPPRESS)
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
     p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")

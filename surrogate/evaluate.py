@@ -305,7 +305,7 @@ def report(table: pd.DataFrame) -> str:
         if row["metric"] == SECONDS:
             value = f"{1000 * row['mean_prediction']:.1f} ms per predicted frame (wall time, mean over sims)"
         elif row["metric"] == MSE:
-            value = f"MSE {row['mse']:.4g} m^2"
+            value = f"{row['mse']:.4g} m^2"
             if row["n_blown_up"]:
                 value += f" ({int(row['n_blown_up'])} blown up: {row['blown_up_sims']})"
         elif row.get("n_blown_up", 0) and row["metric"] != MSE and pd.isna(row["mean_prediction"]):

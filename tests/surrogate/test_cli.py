@@ -1,0 +1,50 @@
+"""`graphdem train` takes the workflow's config keys: --scene, --config FILE and --set KEY=VALUE."""
+
+import pytest
+import yaml
+
+from generators import config
+from surrogate import checkpoint, cli
+
+
+def train(tiny, out, *options):
+    return cli.main(["train", "--scene", "slide", "--stats", str(tiny["stats_path"]), "--splits",
+                     str(tiny["splits"]), "--out-dir", str(out), "--max-steps", "1", "--no-progress", *options])
+
+
+def test_train_takes_a_config_file_and_set_keys_as_the_workflow_does(tiny_dataset, tmp_path):
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(yaml.safe_dump({"scale": "ci", "slide": {"model": {"history": 4, "latent": 8},
+                                                               "train": {"lr": 0.002, "seed": 3}}}))
+    assert train(tiny_dataset, tmp_path / "model", "--config", str(mine), "--set", "slide.train.lr=5e-4",
+                 "--set", "slide.model.hidden=16") == 0
+    meta = checkpoint.load(tmp_path / "model" / "last.pt")["json"]
+    expected = config.load({"scale": "ci", "slide": {"model": {"history": 4, "latent": 8, "hidden": 16},
+                                                      "train": {"lr": 5e-4, "seed": 3}}})["slide"]
+    assert meta["model"] == expected["model"] and meta["train"] == expected["train"]
+    assert meta["train"]["lr"] == 5e-4 and meta["model"]["latent"] == 8     # --set wins over the file
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--set", "slide.train.lrate=1e-3"], "unknown config key 'slide.train.lrate'"),
+    (["--set", "slide.train.lr"], "--set 'slide.train.lr': expected KEY=VALUE"),
+    (["--set", "scale=huge"], "config key 'scale' = 'huge' is not allowed"),
+])
+def test_a_bad_key_stops_before_training_naming_it(tiny_dataset, tmp_path, capsys, options, message):
+    assert train(tiny_dataset, tmp_path / "model", *options) == 1
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "model").exists()
+
+
+def test_a_config_file_that_is_not_a_mapping_is_named(tiny_dataset, tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("- just\n- a list\n")
+    assert train(tiny_dataset, tmp_path / "model", "--config", str(bad)) == 1
+    assert f"--config {bad}: must hold a mapping of config keys, got list" in capsys.readouterr().err
+
+
+def test_train_needs_a_scene_or_the_workflows_sections(tmp_path):
+    with pytest.raises(SystemExit, match="give --scene"):
+        cli.main(["train", "--out-dir", str(tmp_path)])
+    with pytest.raises(SystemExit, match="go together"):
+        cli.main(["train", "--scene", "slide", "--model-json", "{}", "--out-dir", str(tmp_path)])
