@@ -85,6 +85,8 @@ class LearnedSimulator(nn.Module):
 
     def __init__(self, stats: dict, model_cfg: dict):
         super().__init__()
+        self.stats = dict(stats)                 # what it was trained with (a checkpoint stores both)
+        self.model_config = dict(model_cfg)
         self.dim = int(stats["dim"])
         self.history = int(model_cfg["history"])
         self.radius = float(stats["connectivity_radius"])

@@ -1,0 +1,67 @@
+"""The Python API: a checkpoint loaded, rolled out on a trajectory (in memory or a file), and scored."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from generators import h5md
+from surrogate import api, checkpoint
+from surrogate import rollout as rollouts
+from surrogate.samples import load_sim
+from surrogate.simulator import LearnedSimulator
+
+pytestmark = pytest.mark.engine
+
+
+@pytest.fixture
+def saved(tiny_dataset, tmp_path):
+    """An initialised (seed 0) simulator saved as a checkpoint, and the path of the first test sim."""
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    checkpoint.save(tmp_path / "best.pt", {"model": simulator.state_dict(),
+                                           "json": {"stats": stats, "model": tiny_dataset["model"]}})
+    table = tiny_dataset["split_table"]
+    return tmp_path / "best.pt", table.loc[table["split"] == "test", "path"].iloc[0]
+
+
+def test_a_checkpoint_rolls_out_as_the_rollout_stage_does(saved):
+    path, sim_path = saved
+    simulator = api.load_simulator(path)
+    assert simulator.history == 4 and simulator.stats["dim"] == 2 and not simulator.training
+    sim = h5md.read(sim_path)
+    predicted = api.rollout(simulator, sim)
+    stage = rollouts.rollout(simulator, load_sim(sim_path, simulator.stats))
+    np.testing.assert_array_equal(predicted.position, stage.position.astype(np.float32))
+    np.testing.assert_array_equal(predicted.position[:4], sim.position[:4])         # the K frames given
+    np.testing.assert_array_equal(predicted.time, sim.time)
+    assert predicted.parameters["rollout_history"] == 4 and predicted.parameters["rollout_first_nonfinite"] == -1
+    np.testing.assert_array_equal(api.rollout(simulator, sim_path).position, predicted.position)   # from a file
+
+
+def test_rollout_mse_is_the_mean_squared_distance_of_the_moving_particles(saved):
+    path, sim_path = saved
+    simulator, sim = api.load_simulator(path), h5md.read(sim_path)
+    predicted = api.rollout(simulator, sim)
+    moving = ~sim.kinematic
+    by_hand = ((predicted.position[4:, moving].astype(float) - sim.position[4:, moving]) ** 2).sum(-1).mean()
+    assert api.rollout_mse(predicted, sim) == pytest.approx(by_hand, rel=1e-9) and by_hand > 0
+    assert api.rollout_mse(h5md.Trajectory(**{**vars(sim), "parameters": {"rollout_history": 4}}), sim) == 0.0
+    with pytest.raises(ValueError, match="carries no rollout_history"):
+        api.rollout_mse(sim, sim)
+
+
+def test_a_rollout_beyond_the_data_continues_the_frame_times(saved):
+    path, sim_path = saved
+    simulator, sim = api.load_simulator(path), h5md.read(sim_path)
+    predicted = api.rollout(simulator, sim, steps=sim.n_frames)          # K + T frames: K beyond the data
+    assert predicted.n_frames == sim.n_frames + 4
+    interval = sim.time[-1] - sim.time[-2]
+    np.testing.assert_allclose(np.diff(predicted.time[sim.n_frames - 1:]), interval, rtol=1e-9)
+    np.testing.assert_array_equal(predicted.position[-1, sim.kinematic], sim.position[-1, sim.kinematic])
+    predicted.validate("rollout")                                        # a valid trajectory, writable as H5MD
+    assert api.rollout_mse(predicted, sim) > 0                           # scored on the frames both hold
+    with pytest.raises(ValueError, match="predicts at least one frame"):
+        api.rollout(simulator, sim, steps=0)
