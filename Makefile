@@ -25,11 +25,13 @@ $(APT_STAMP):
 	fi
 	@mkdir -p $(VENV) && touch $@
 
-$(STAMP): pyproject.toml $(APT_STAMP)
+# The tested set: constraints.txt pins every dependency exactly (pyproject.toml gives only ranges). torch goes
+# first, on its own, at its pin 2.13.0: the CPU build (a bare `torch` would pull gigabytes of CUDA packages).
+$(STAMP): pyproject.toml constraints.txt $(APT_STAMP)
 	@test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -c constraints.txt torch
+	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
 	@touch $@
 
 run: install

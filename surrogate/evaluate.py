@@ -46,9 +46,14 @@ class Evaluated:
 
 
 def code_version() -> str:
-    """Package version plus the git commit of the source tree, when there is one."""
+    """Package version plus the git commit of the source tree, when the packages are a git checkout's own (an
+    installed wheel has none: its site-packages may lie inside some other repository, whose commit is not ours)."""
     root = Path(__file__).resolve().parent.parent
     try:
+        top = subprocess.run(["git", "-C", str(root), "rev-parse", "--show-toplevel"], capture_output=True,
+                             text=True, timeout=10, check=True).stdout.strip()
+        if Path(top).resolve() != root:
+            return h5md.CREATOR_VERSION
         commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"], capture_output=True,
                                 text=True, timeout=10, check=True).stdout.strip()
         dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
