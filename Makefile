@@ -39,11 +39,11 @@ run: install
 	$(VENV)/bin/snakemake -c$(CORES) $(TARGET)
 
 test: install
-	$(VENV)/bin/ruff check generators surrogate tests
+	$(VENV)/bin/ruff check generators surrogate graphdem tests
 	$(VENV)/bin/python -m pytest -q
 
 lint: install
-	$(VENV)/bin/ruff check generators surrogate tests
+	$(VENV)/bin/ruff check generators surrogate graphdem tests
 
 clean-results:
 	rm -rf results/*/ .snakemake

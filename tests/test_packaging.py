@@ -23,12 +23,12 @@ from generators import config, h5md, scenes
 from surrogate import cli, evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("generators", "surrogate")
+PACKAGES = ("generators", "surrogate", "graphdem")
 PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
 
 
 def _source_files() -> list[str]:
-    """Every file of the two packages in the source tree (modules, YAML defaults and schemas, the YADE script),
+    """Every file of the packages in the source tree (modules, YAML defaults and schemas, the YADE script),
     relative to the root; bytecode caches left out."""
     return sorted(p.relative_to(ROOT).as_posix() for package in PACKAGES for p in (ROOT / package).rglob("*")
                   if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".pyc")
@@ -100,11 +100,12 @@ def test_the_wheel_carries_every_file_of_the_packages_and_nothing_else(installed
 
 def test_the_installed_wheel_is_the_code_imported_and_claims_no_commit_of_the_repository_around_it(installed):
     """The venv lies inside an unrelated git repository: its commit is not the code's."""
-    code = ("import generators, surrogate; from surrogate import evaluate; "
-            "print(generators.__file__, surrogate.__file__, evaluate.__file__); print(evaluate.code_version())")
+    code = ("import generators, graphdem, surrogate; from surrogate import evaluate; "
+            "print(generators.__file__, surrogate.__file__, graphdem.__file__, evaluate.__file__); "
+            "print(evaluate.code_version())")
     *where, version = _run([str(installed["python"]), "-c", code], cwd=installed["cwd"], env=installed["env"]
                            ).stdout.split()
-    assert len(where) == 3 and all(Path(f).is_relative_to(installed["purelib"]) for f in where), where
+    assert len(where) == 4 and all(Path(f).is_relative_to(installed["purelib"]) for f in where), where
     assert version == h5md.CREATOR_VERSION
     if (ROOT / ".git").exists():                                 # the checkout itself names its commit
         assert evaluate.code_version().startswith(f"{h5md.CREATOR_VERSION}+")
