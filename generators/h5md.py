@@ -3,12 +3,16 @@
 Layout::
 
     /h5md                          version [1, 1]; author/name; creator/name, creator/version
-    /particles/all/box             dimension, boundary; edges [D]
+    /h5md/modules/units            version [1, 0], system "SI": every ``unit`` attribute is an SI unit
+    /particles/all/box             dimension, boundary; edges/{value [T,D] f8, step, time}; lower [D] f8
     /particles/all/position/{value [T,N,D] f4, step [T] i8, time [T] f8}
     /particles/all/{species i4, radius f4, mass f4, kinematic bool}   [N]
     /particles/all/properties      [N, F] f4, attribute names (optional)
     /parameters                    attributes: every scene/DEM parameter and the provenance
     /observables/<name>/{value, step, time}                           (optional)
+
+Every ``step`` and ``time`` beside position's (box edges, observables) is a hard link to position's. Files
+written before the units module was declared hold ``box/edges`` as a dataset [D]; they read as before.
 """
 
 from __future__ import annotations
@@ -23,6 +27,9 @@ import numpy as np
 from generators.atomic import atomic_path
 
 H5MD_VERSION = (1, 1)
+UNITS_MODULE_VERSION = (1, 0)
+UNIT_SYSTEM = "SI"
+LENGTH_UNIT, TIME_UNIT, MASS_UNIT = "m", "s", "kg"
 CREATOR = "graphdem"
 CREATOR_VERSION = "0.1.0"
 
@@ -148,35 +155,72 @@ def _from_attr(value):
     return value
 
 
+def _set_unit(node: h5py.Dataset, unit: str) -> None:
+    """Attach the units module's ``unit`` attribute: scalar, variable-length ASCII string (MDAnalysis reads
+    only variable-length unit strings)."""
+    node.attrs.create("unit", unit, dtype=h5py.string_dtype("ascii"))
+
+
+def _write_h5md_group(f: h5py.File, author: str) -> None:
+    """The /h5md metadata: spec version, author, creator and the declared units module."""
+    h5md = f.create_group("h5md")
+    h5md.attrs["version"] = np.array(H5MD_VERSION, dtype=np.int32)
+    f.create_group("h5md/author").attrs["name"] = author
+    creator = f.create_group("h5md/creator")
+    creator.attrs["name"] = CREATOR
+    creator.attrs["version"] = CREATOR_VERSION
+    units = f.create_group("h5md/modules/units")
+    units.attrs["version"] = np.array(UNITS_MODULE_VERSION, dtype=np.int32)
+    units.attrs.create("system", UNIT_SYSTEM, dtype=h5py.string_dtype("ascii"))
+
+
+def _write_position(part: h5py.Group, traj: Trajectory) -> h5py.Group:
+    """The time-dependent position element: value [T, N, D] (m), step [T], time [T] (s)."""
+    _, n, d = traj.position.shape
+    pos = part.create_group("position")
+    pos.create_dataset("value", data=np.asarray(traj.position, np.float32),
+                       chunks=(1, n, d), compression="gzip", compression_opts=4, shuffle=True)
+    pos.create_dataset("step", data=np.asarray(traj.step, np.int64))
+    pos.create_dataset("time", data=np.asarray(traj.time, np.float64))
+    _set_unit(pos["time"], TIME_UNIT)
+    _set_unit(pos["value"], LENGTH_UNIT)
+    return pos
+
+
+def _link_step_time(element: h5py.Group, pos: h5py.Group) -> None:
+    """Make ``element``'s step and time hard links to position's (H5MD: elements sampled at equal times)."""
+    element["step"] = pos["step"]
+    element["time"] = pos["time"]
+
+
+def _write_box(part: h5py.Group, traj: Trajectory, pos: h5py.Group) -> None:
+    """The box: dimension, boundary, edges as a time-dependent element (the fixed edges once per frame, step and
+    time linked to position's, as H5MD asks of a particle group's box) and our lower corner [D]."""
+    t, _, d = traj.position.shape
+    lower = np.asarray(traj.box_lower, np.float64)
+    edges = np.asarray(traj.box_upper, np.float64) - lower
+    box = part.create_group("box")
+    box.attrs["dimension"] = np.int32(d)
+    box.attrs["boundary"] = np.array(traj.boundary or ("none",) * d, dtype="S8")
+    element = box.create_group("edges")
+    _link_step_time(element, pos)
+    _set_unit(element.create_dataset("value", data=np.broadcast_to(edges, (t, d))), LENGTH_UNIT)
+    _set_unit(box.create_dataset("lower", data=lower), LENGTH_UNIT)
+
+
 def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_nonfinite: bool = False) -> Path:
     """Validate ``traj`` and write it atomically to ``path`` as H5MD."""
     path = Path(path)
     traj.validate(str(path), allow_nonfinite)
-    t, n, d = traj.position.shape
     with atomic_path(path) as tmp:
         with h5py.File(tmp, "w") as f:
-            h5md = f.create_group("h5md")
-            h5md.attrs["version"] = np.array(H5MD_VERSION, dtype=np.int32)
-            f.create_group("h5md/author").attrs["name"] = author
-            creator = f.create_group("h5md/creator")
-            creator.attrs["name"] = CREATOR
-            creator.attrs["version"] = CREATOR_VERSION
+            _write_h5md_group(f, author)
             part = f.create_group("particles/all")
-            box = part.create_group("box")
-            box.attrs["dimension"] = np.int32(d)
-            box.attrs["boundary"] = np.array(traj.boundary or ("none",) * d, dtype="S8")
-            box.create_dataset("edges", data=np.asarray(traj.box_upper, float) - np.asarray(traj.box_lower, float))
-            box.create_dataset("lower", data=np.asarray(traj.box_lower, float))
-            pos = part.create_group("position")
-            pos.create_dataset("value", data=np.asarray(traj.position, np.float32),
-                               chunks=(1, n, d), compression="gzip", compression_opts=4, shuffle=True)
-            pos.create_dataset("step", data=np.asarray(traj.step, np.int64))
-            pos.create_dataset("time", data=np.asarray(traj.time, np.float64))
-            pos["time"].attrs["unit"] = "s"
-            pos["value"].attrs["unit"] = "m"
+            pos = _write_position(part, traj)
+            _write_box(part, traj, pos)
             part.create_dataset("species", data=np.asarray(traj.species, np.int32))
-            part.create_dataset("radius", data=np.asarray(traj.radius, np.float32))
-            part.create_dataset("mass", data=np.asarray(traj.mass, np.float32))
+            _set_unit(part.create_dataset("radius", data=np.asarray(traj.radius, np.float32)), LENGTH_UNIT)
+            _set_unit(part.create_dataset("mass", data=np.asarray(traj.mass, np.float32)), MASS_UNIT)
             part.create_dataset("kinematic", data=np.asarray(traj.kinematic, bool))
             if traj.properties is not None:
                 props = part.create_dataset("properties", data=np.asarray(traj.properties, np.float32))
@@ -187,8 +231,7 @@ def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_no
             for name, values in traj.observables.items():
                 obs = f.create_group(f"observables/{name}")
                 obs.create_dataset("value", data=np.asarray(values, np.float64))
-                obs.create_dataset("step", data=np.asarray(traj.step, np.int64))
-                obs.create_dataset("time", data=np.asarray(traj.time, np.float64))
+                _link_step_time(obs, pos)
     return path
 
 
@@ -202,9 +245,9 @@ def _need(f: h5py.File, key: str, path: Path):
 #: than it holds); every file may declare MIN_DECLARED_BYTES
 DECLARED_PER_FILE_BYTE, MIN_DECLARED_BYTES = 200, 256 * 2 ** 20
 REQUIRED = ("particles/all/position/value", "particles/all/position/time", "particles/all/position/step",
-            "particles/all/species", "particles/all/radius", "particles/all/mass", "particles/all/kinematic",
-            "particles/all/box/edges")
+            "particles/all/species", "particles/all/radius", "particles/all/mass", "particles/all/kinematic")
 OPTIONAL = ("particles/all/box/lower", "particles/all/properties")
+EDGES = "particles/all/box/edges"
 
 
 def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
@@ -219,6 +262,25 @@ def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
                         f"{limit / 2**20:,.0f} MiB for a file of {path.stat().st_size / 2**20:,.2f} MiB; refused "
                         f"before reading")
     return node
+
+
+def _edges_key(f: h5py.File) -> str:
+    """Where the box edges are: ``edges/value`` of the time-dependent element (files with the units module), or
+    ``edges`` itself, the fixed dataset [D] of older files."""
+    return f"{EDGES}/value" if isinstance(f.get(EDGES), h5py.Group) else EDGES
+
+
+def _fixed_edges(edges: np.ndarray, key: str, frames_shape: tuple[int, ...], path: Path) -> np.ndarray:
+    """The box edges [D] from what ``key`` holds: a fixed dataset as it is (its shape is checked by
+    Trajectory.validate), or a time-dependent value [T, D] whose rows, one per frame, must all be equal."""
+    if key == EDGES:
+        return edges
+    if edges.dtype.kind not in "fiu" or edges.ndim != 2 or edges.shape[:1] != frames_shape or not edges.shape[0]:
+        raise H5MDError(f"{path}: {key} must hold numbers of shape [T, D], one row per frame (position/time has "
+                        f"shape {frames_shape}), got {edges.dtype} {edges.shape}")
+    if not np.array_equal(edges, np.broadcast_to(edges[0], edges.shape), equal_nan=True):
+        raise H5MDError(f"{path}: {key} changes over time; a graphdem trajectory has a fixed box")
+    return edges[0]
 
 
 def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
@@ -245,9 +307,10 @@ def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = 
             box = _need(f, "particles/all/box", path)
             if not isinstance(box, h5py.Group):
                 raise H5MDError(f"{path}: particles/all/box must be a group")
-            sets = {k: _dataset(f, k, path, limit) for k in (*REQUIRED, *(k for k in OPTIONAL if k in f))}
+            edges_key = _edges_key(f)
+            sets = {k: _dataset(f, k, path, limit) for k in (*REQUIRED, edges_key, *(k for k in OPTIONAL if k in f))}
             frames_shape = sets["particles/all/position/time"].shape
-            edges = sets["particles/all/box/edges"][()]
+            edges = _fixed_edges(sets[edges_key][()], edges_key, frames_shape, path)
             lower = sets["particles/all/box/lower"][()] if "particles/all/box/lower" in sets else np.zeros_like(edges)
             props = names = None
             if "particles/all/properties" in sets:

@@ -61,7 +61,7 @@ def edit(fn):
     return mutate
 
 
-POS, SPECIES = "particles/all/position/value", "particles/all/species"
+POS, SPECIES, EDGES = "particles/all/position/value", "particles/all/species", "particles/all/box/edges/value"
 # name -> mutation; the last ones are valid H5MD that only the model refuses (evaluate, not inspect)
 H5MD_MUTATIONS = {
     "truncated": truncate, "flipped_bytes": flip_bytes,
@@ -85,6 +85,14 @@ H5MD_MUTATIONS = {
     "negative_radius": edit(lambda f, rng: _replace(f, "particles/all/radius", -rng.random(12))),
     "time_backwards": edit(lambda f, rng: _replace(f, "particles/all/position/time", np.arange(6)[::-1] * 1.0)),
     "negative_box": edit(lambda f, rng: _replace(f, "particles/all/box/edges", np.array([-1.0, 10.0]))),
+    "negative_box_every_frame": edit(lambda f, rng: f[EDGES].__setitem__(Ellipsis, [-rng.uniform(0.1, 5), 10.0])),
+    "box_changes_over_time": edit(lambda f, rng: f[EDGES].__setitem__(int(rng.integers(0, 6)), rng.uniform(1, 9, 2))),
+    "box_edges_no_value": edit(lambda f, rng: f.__delitem__(EDGES)),
+    "box_edges_short_of_frames": edit(lambda f, rng: _replace(f, EDGES, np.full((int(rng.integers(1, 6)), 2), 10.0))),
+    "box_edges_one_row": edit(lambda f, rng: _replace(f, EDGES, np.full(2, 10.0))),
+    "string_box_edges": edit(lambda f, rng: _replace(f, EDGES, np.full((6, 2), "x", dtype="S4"))),
+    "box_edges_declare_4_GiB": edit(lambda f, rng: _replace(f, EDGES, shape=(6, 100_000_000), dtype="f8",
+                                                            chunks=(1, 100_000), compression="gzip", data=None)),
     "box_edges_a_group": edit(lambda f, rng: (f.__delitem__("particles/all/box/edges"),
                                               f.create_group("particles/all/box/edges"))),
     "short_observable": edit(lambda f, rng: f.create_dataset("observables/energy/value",

@@ -17,8 +17,9 @@ def tiny(tmp_path_factory):
     table = sweep.build("shear", cfg)
     row = table.iloc[-1].to_dict()                          # the stiffest modulus, the largest displacement
     meta = engine.simulate(shear.SCENE, row, root / "packing", root / "raw")
-    traj = h5md.read(convert.convert(root / "raw", root / "sim.h5"))
-    return {"cfg": cfg, "row": row, "meta": meta, "traj": traj, "packing": engine.read_packing(root / "packing")}
+    path = convert.convert(root / "raw", root / "sim.h5")
+    return {"cfg": cfg, "row": row, "meta": meta, "traj": h5md.read(path), "path": path,
+            "packing": engine.read_packing(root / "packing")}
 
 
 def test_count_constant_types_soil_and_box(tiny):
@@ -60,6 +61,21 @@ def test_modulus_is_a_log_scaled_property_and_time_step_follows_it(tiny):
     assert traj.parameters["dem_time_step"] == pytest.approx(dt) and dt < limit
     softer = dict(row, young=row["young"] / 100)
     assert shear.dem_step(softer, "test")[0] == pytest.approx(10 * dt)        # dt ~ 1/sqrt(E)
+
+
+def test_mdanalysis_opens_the_real_sim_with_our_numbers(tiny):
+    """The 3D sim as MDAnalysis reads it (docs/data.md): every frame's positions, box edges and time, in m and s."""
+    pytest.importorskip("MDAnalysis")
+    from generators import h5md_mdanalysis
+
+    traj = tiny["traj"]
+    u = h5md_mdanalysis.universe(tiny["path"])
+    assert (u.trajectory.n_frames, u.atoms.n_atoms) == traj.position.shape[:2]
+    for i, ts in enumerate(u.trajectory):
+        np.testing.assert_array_equal(ts.positions, traj.position[i])
+        np.testing.assert_allclose(ts.dimensions, [*(traj.box_upper - traj.box_lower), 90, 90, 90], rtol=1e-7)
+        assert ts.time == pytest.approx(traj.time[i], rel=1e-12) and ts.data["step"] == traj.step[i]
+    np.testing.assert_array_equal(u.atoms.types, traj.species.astype(str))
 
 
 def test_yade_left_no_server_open(tiny):
