@@ -168,6 +168,9 @@ def test_a_run_at_another_scale_is_refused_before_anything_runs(tmp_path):
     assert ("results/slide holds results of scale=default; this run asks for scale=ci and would overwrite them"
             in proc.stdout + proc.stderr)
     assert sorted(p.name for p in (tmp_path / "results" / "slide").iterdir()) == ["scale.txt"]
+    for target in ("results/slide/sims/slide_0000.h5", "results/crosscheck/slide.csv"):   # not through the sweep
+        proc = snakemake(tmp_path, target, "-n", config=())
+        assert proc.returncode != 0 and "holds results of scale=default" in proc.stdout + proc.stderr
     assert "sweep" in planned(snakemake(tmp_path, TARGET, "-n", config=("overwrite_scale=true",)))
     # another scene's folder is not this run's business
     assert "sweep" in planned(snakemake(tmp_path, "results/meteorite/dataset/stats.json", "-n", config=()))

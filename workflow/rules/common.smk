@@ -57,9 +57,11 @@ def _json(value) -> str:
 
 
 def kept_scale(wildcards) -> list[str]:
-    """Input function of a scene's or benchmark's first stage: no input, but refuses a run at another scale
-    than its results folder records (generators/scales.py), before anything runs."""
-    folder = f"results/{getattr(wildcards, 'scene', None) or wildcards.bench}"
+    """Input function of the stages that start a scene's results (sweep, prepare, simulate, also of the
+    cross-check's runs) or a benchmark's (import): no input, but refuses a run at another scale than the
+    scene's or benchmark's results folder records (generators/scales.py), before anything runs."""
+    name = getattr(wildcards, "scene", None) or getattr(wildcards, "bench", None) or run_scene(wildcards)
+    folder = f"results/{name}"
     gscales.check(folder, CFG["scale"], CFG["overwrite_scale"])
     SCALE_FOLDERS.add(folder)
     return []

@@ -1,6 +1,8 @@
 # Stage prepare: settle a packing once; every sim whose packing parameters match shares it (in every engine:
 # the cross-check's other engine starts from the same packings).
 rule prepare:
+    input:
+        kept_scale,
     output:
         directory("results/{scene}/packings/{key}"),
     params:

@@ -2,6 +2,7 @@
 rule simulate:
     input:
         packing=packing_of_sim,
+        scale=kept_scale,
     output:
         directory("results/{run}/raw/{sim}"),
     params:
