@@ -18,6 +18,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from generators import h5md
@@ -149,8 +150,6 @@ def export(traj: h5md.Trajectory, pvd: str | Path, truth: h5md.Trajectory | None
         raise ExportError(f"every must be a positive whole number of frames, got {every!r}")
     if truth is not None:
         check_truth(traj, truth)
-    import meshio
-
     vel = velocity(traj.position, traj.time)
     frames = tuple(range(0, traj.n_frames, every))
     cells = [("vertex", np.arange(traj.n_particles, dtype=np.int64)[:, None])]
