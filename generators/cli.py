@@ -1,5 +1,5 @@
 """The generators' stages on the `graphdem` command line: config, sweep, prepare, simulate, convert,
-inspect, import-solidgn, stability-dem, physics, crosscheck and transfer (surrogate/cli.py adds the
+inspect, export, import-solidgn, stability-dem, physics, crosscheck and transfer (surrogate/cli.py adds the
 surrogate's and runs them all).
 
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason
@@ -133,6 +133,30 @@ def cmd_inspect(args) -> None:
               f"t = {traj.time[0]:.4g}..{traj.time[-1]:.4g} s")
 
 
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def cmd_export(args) -> None:
+    from generators import export
+    folder = export.frames_dir(args.out).resolve()
+    for flag, given in (("", args.trajectory), ("--truth ", args.truth)):
+        if given is not None and (given.resolve() == folder or folder in given.resolve().parents):
+            raise SystemExit(f"graphdem export: --out {args.out} writes its frames into {export.frames_dir(args.out)}"
+                             f", which would overwrite the input {flag}{given}; write the output elsewhere")
+    series = export.export_file(args.trajectory, args.out, args.truth, args.every)
+    print(f"{series.pvd}: {len(series.frames)} frames (every {args.every}), t = {series.times[0]:.4g}.."
+          f"{series.times[-1]:.4g} s, in {series.frames_dir}/ ({series.seconds:.2f} s)"
+          f"{f', error against {args.truth}' if args.truth else ''}")
+
+
 def cmd_crosscheck(args) -> None:
     import pandas as pd
 
@@ -262,6 +286,24 @@ def add_commands(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_import_solidgn)
 
+    p = sub.add_parser("export", help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)",
+                       description="Write TRAJECTORY (an H5MD sim or Graph-DEM rollout) as the ParaView time "
+                                   "series --out NAME.pvd: one .vtu per exported frame in the folder NAME/ beside "
+                                   "it, each frame's time in the .pvd. Point data: id, type (species), radius (m), "
+                                   "mass (kg), kinematic (0/1), velocity (m/s; backward difference of the recorded "
+                                   "frames, the first frame takes the forward one), every per-particle property by "
+                                   "name, and with --truth the rollout error: error (m, distance to the truth's "
+                                   "position) and error_radii (in the particle's radii). 2D gets z = 0. Written "
+                                   "atomically: the .pvd appears last. Open NAME.pvd in ParaView (docs/export.md).")
+    p.add_argument("trajectory", type=Path, metavar="TRAJECTORY", help="H5MD file to export (a sim or a rollout)")
+    p.add_argument("--out", type=Path, required=True, metavar="NAME.pvd",
+                   help="the .pvd to write; its frames go to the folder of the same name without .pvd")
+    p.add_argument("--truth", type=Path, metavar="DEM.h5",
+                   help="the DEM sim a rollout was made from (same particles and frame times): adds the error")
+    p.add_argument("--every", type=positive_int, default=1, metavar="K",
+                   help="export every K-th recorded frame from the first (default 1: all)")
+    p.set_defaults(func=cmd_export)
+
     p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
     p.set_defaults(func=cmd_inspect)
@@ -294,10 +336,10 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 def errors() -> tuple[type[Exception], ...]:
     """The generators' errors that `graphdem` reports as one line (exit status 1)."""
-    from generators import blowup, contact, dem, h5md, record
+    from generators import blowup, contact, dem, export, h5md, record
     from generators.lammps import io as lammps_io
     from generators.lammps import runner as lammps_runner
     from generators.yade import runner as yade_runner
-    return (gconfig.ConfigError, h5md.H5MDError, blowup.BlowUp, contact.UnstableTimeStep, dem.UnsupportedSetup,
-            record.RecordError, lammps_runner.LammpsError, lammps_io.LammpsOutputError, yade_runner.YadeError,
-            pickle.UnpicklingError, FileNotFoundError, ValueError)
+    return (gconfig.ConfigError, h5md.H5MDError, export.ExportError, blowup.BlowUp, contact.UnstableTimeStep,
+            dem.UnsupportedSetup, record.RecordError, lammps_runner.LammpsError, lammps_io.LammpsOutputError,
+            yade_runner.YadeError, pickle.UnpicklingError, FileNotFoundError, ValueError)

@@ -114,6 +114,33 @@ def test_stability_stage_outputs(workdir):
     assert precision.at["float32", "max_difference_vs_float64"] < 1e-3
 
 
+def test_export_stage_writes_each_test_sim_and_its_rollout_for_paraview(workdir):
+    import meshio
+    import pandas as pd
+
+    from generators import export
+    assert planned(snakemake(workdir, "results/slide/vtk", "-n")) == {"export": 1}     # reuses sims and rollouts
+    proc = snakemake(workdir, "results/slide/vtk", "-c1")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    res = workdir / "results" / "slide"
+    test_ids = list(pd.read_csv(res / "dataset" / "splits.csv").query("split == 'test'")["id"])
+    assert sorted(p.name for p in (res / "vtk").iterdir() if not p.name.startswith(".")) == sorted(test_ids)
+    for sim in test_ids:
+        truth = h5md.read(res / "sims" / f"{sim}.h5")
+        rolled = h5md.read(res / "rollouts" / f"{sim}.h5", allow_nonfinite=True)
+        for name, traj in (("dem", truth), ("graphdem", rolled)):
+            entries = export.read_pvd(res / "vtk" / sim / f"{name}.pvd")
+            assert [t for t, _ in entries] == truth.time.tolist()
+            last = meshio.read(entries[-1][1])
+            np.testing.assert_array_equal(last.points[:, :2], traj.position[-1])
+            np.testing.assert_array_equal(last.points[:, 2], 0.0)
+        error = meshio.read(entries[-1][1]).point_data["error"]
+        expected = np.linalg.norm(rolled.position[-1].astype(float) - truth.position[-1].astype(float), axis=-1)
+        np.testing.assert_allclose(error, expected, rtol=1e-12)
+        assert error.max() > 0 and (error[truth.kinematic] == 0).all()
+    assert (res / "logs" / "export.log").is_file() and (res / "benchmarks" / "export.tsv").is_file()
+
+
 def test_changed_learning_rate_retrains_but_reruns_no_engine(workdir):
     jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", train: {lr: 0.005}}",)))
     assert jobs.get("train") == 1 and jobs.get("evaluate") == 1

@@ -373,3 +373,22 @@ def contender_tables(wildcards) -> list[str]:
     b = stage_config(wildcards.scene, "performance")
     return [f"results/{wildcards.scene}/performance/{kind}/{name}.csv" for kind in ("dem", "surrogate")
             for name in b[kind]]
+
+
+# ---- ParaView export -----------------------------------------------------------------------------
+
+
+def export_ids(wildcards) -> list[str]:
+    """The sims a scene exports for ParaView: its test sims, each with its rollout."""
+    ids = test_ids(wildcards.scene)
+    if not ids:
+        raise ValueError(f"results/{wildcards.scene}/vtk: the {wildcards.scene} sweep has no test sim to export")
+    return ids
+
+
+def export_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in export_ids(wildcards)]
+
+
+def export_rollouts(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/rollouts/{i}.h5" for i in export_ids(wildcards)]
