@@ -63,7 +63,7 @@ PROMISES = {
     "results/slide/metrics.csv --config 'slide={train: {noise_std: 0.01}}'":
         {**SLIDE, "reruns": {"train", "rollout", "evaluate"}},
     "results/slide/metrics.csv --config 'slide={young: 5.0e9}'":
-        {**SLIDE, "reruns": {"prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
+        {**SLIDE, "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/slide/metrics.csv --config 'slide={weak_friction: 0.1, n_sims: 100}'":
         {**SLIDE, "reruns": {"sweep", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/slide/metrics.csv --config 'slide={sweep: {weak_dip: [5.0, 15.0]}}'":
@@ -76,7 +76,8 @@ PROMISES = {
          "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/shear/metrics.csv --config scale=ci 'shear={engine: lammps}'":
         {"builds": ({"shear"}, "evaluate"),
-         "reruns": {"prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
+         "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
+    "results/slide/vtk": {"builds": ({"slide"}, "export")},
     "results/slide/performance.csv": {"builds": ({"slide"}, "performance")},
     "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
