@@ -35,6 +35,7 @@ def test_evaluate_cli_writes_mse_per_sim_and_scene_metrics(tiny_dataset, trained
     overall = mse[mse["sim"] == "all"]["mse"].iloc[0]
     assert overall == pytest.approx(per_sim["mse"].mean()) and np.isfinite(overall)
     assert "rollout MSE of slide_0000" in printed
+    assert f"rollout MSE {overall:.4g} m^2" in " ".join(printed.split()) and "MSE MSE" not in printed
     metrics = set(table.loc[table["sim"] == "all", "metric"])
     assert {"Slide Num", "Max Ht", "Mean Ht", "Tongue Dis", "Dis", "Dis mean", "seconds per frame"} <= metrics
     assert set(table["method"]) == {"graphdem", "constant_velocity"}
