@@ -7,11 +7,19 @@ rule evaluate:
         splits="results/{name}/dataset/splits.csv",
         rollouts=evaluated_rollouts,
     output:
-        metrics=report("results/{name}/metrics.csv", caption="../report/metrics.rst", category="evaluation"),
+        metrics=report("results/{name}/metrics.csv", caption="../report/metrics.rst",
+                       category=report_category, subcategory="evaluation",
+                       labels={"figure": "metrics.csv (download)", "scene": "{name}"}),
+        table=report("results/{name}/metrics.html", caption="../report/metrics_table.rst",
+                     category=report_category, subcategory="evaluation",
+                     labels={"figure": "metrics table", "scene": "{name}"}),
         per_step="results/{name}/metrics_per_step.csv",
         frames=report("results/{name}/plots/metrics_over_frames.png", caption="../report/metrics_over_frames.rst",
-                      category="evaluation"),
-        gif=report("results/{name}/plots/rollout.gif", caption="../report/rollout.rst", category="evaluation"),
+                      category=report_category, subcategory="evaluation",
+                      labels={"figure": "metrics over frames", "scene": "{name}"}),
+        gif=report("results/{name}/plots/rollout.gif", caption="../report/rollout.rst",
+                   category=report_category, subcategory="evaluation",
+                   labels={"figure": "rollout animation (DEM and Graph-DEM)", "scene": "{name}"}),
     params:
         evaluation=evaluation_args,
         runtime=runtime_json,
@@ -23,5 +31,5 @@ rule evaluate:
         "results/{name}/benchmarks/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
-        "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} --per-step {output.per_step:q} "
         "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"
