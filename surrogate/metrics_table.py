@@ -54,7 +54,7 @@ th, td { border: 1px solid #cbd5e1; padding: 3px 6px; text-align: right; vertica
 th { background: #e2e8f0; } td.text { text-align: left; }
 span.na { color: #94a3b8; font-style: italic; }
 span.undefined { color: #b45309; font-weight: bold; }
-span.why { display: block; color: #b45309; font-size: 11px; font-weight: normal; max-width: 16em; }
+span.why, td.why { color: #b45309; font-size: 11px; }
 ul.legend { color: #475569; padding-left: 18px; }
 """
 
@@ -85,16 +85,17 @@ def _is_nan(value) -> bool:
     return value is None or (isinstance(value, float) and math.isnan(value)) or pd.isna(value)
 
 
-def why_undefined(row: pd.Series, kind: str) -> str:
-    """Why a value that applies to ``row`` is NaN in metrics.csv."""
+def why_undefined(row: pd.Series, kind: str, column: str) -> str:
+    """Why ``column``, which applies to ``row``, is NaN in metrics.csv."""
     blown = 0 if _is_nan(row.get("n_blown_up")) else int(row["n_blown_up"])
     if blown:
         sims = str(row.get("blown_up_sims") or "").strip()
         return f"{blown} rollout(s) blew up" + (f": {sims}" if sims else "")
     frames, left_out = row.get("n_frames"), row.get("n_frames_left_out")
-    if not _is_nan(frames) and not _is_nan(left_out) and int(left_out) >= int(frames) > 0:
-        if kind == "truth":
-            return f"the DEM truth is zero or undefined in all {int(frames)} scored frames"
+    every = not _is_nan(frames) and not _is_nan(left_out) and int(left_out) >= int(frames) > 0
+    if kind == "truth" and column in ("acc_percent", "mean_truth") and _is_nan(row.get("mean_truth")):
+        return "the DEM truth is zero or undefined in every scored frame"
+    if column == "mean_prediction" and every:
         return f"undefined in all {int(frames)} scored frames"
     if kind == "seconds":
         return "no rollout timing recorded"
@@ -109,19 +110,18 @@ def _number(column: str, value) -> str:
     return f"{float(value):.4g}"
 
 
-def cell(row: pd.Series, column: str, kind: str) -> str:
-    """One value cell: the number, or n/a, or undefined with its reason."""
-    if column not in APPLIES[kind]:
-        if _is_nan(row.get(column)):
-            return f'<td><span class="na" title="{html.escape(NOT_APPLICABLE[kind])}">n/a</span></td>'
+def cell(row: pd.Series, column: str, kind: str) -> tuple[str, str | None]:
+    """One value cell (the number, n/a or undefined) and, for undefined, why."""
     value = row.get(column)
+    if column not in APPLIES[kind] and _is_nan(value):
+        return f'<td><span class="na" title="{html.escape(NOT_APPLICABLE[kind])}">n/a</span></td>', None
     if _is_nan(value):
-        why = html.escape(why_undefined(row, kind))
-        return f'<td><span class="undefined" title="{why}">undefined</span><span class="why">{why}</span></td>'
+        why = why_undefined(row, kind, column)
+        return f'<td><span class="undefined" title="{html.escape(why)}">undefined</span></td>', why
     text = _number(column, value)
     if column == "n_blown_up" and int(value) and str(row.get("blown_up_sims") or "").strip():
         text += f' <span class="why">{html.escape(str(row["blown_up_sims"]))}</span>'
-    return f"<td>{text}</td>"
+    return f"<td>{text}</td>", None
 
 
 def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, set[str]]) -> str:
@@ -133,13 +133,16 @@ def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, se
         label = html.escape(str(row["metric"]) + (f" ({unit})" if unit else ""))
         cells = [f'<td class="text">{html.escape(str(row["method"]))}</td>', f'<td class="text">{label}</td>',
                  f'<td class="text">{html.escape(str(row["sim"]))}</td>']
-        cells += [cell(row, column, kind) for column in COLUMNS]
+        values = [cell(row, column, kind) for column in COLUMNS]
+        whys = list(dict.fromkeys(why for _, why in values if why))
+        cells += [html_cell for html_cell, _ in values]
+        cells.append(f'<td class="text why">{html.escape("; ".join(whys))}</td>')
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out)
 
 
 def _table(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, set[str]]) -> str:
-    head = "".join(f"<th>{h}</th>" for h in ("method", "metric", "sim", *COLUMNS.values()))
+    head = "".join(f"<th>{h}</th>" for h in ("method", "metric", "sim", *COLUMNS.values(), "why undefined"))
     return f"<table>\n<tr>{head}</tr>\n{_rows(table, units, metric_names)}\n</table>"
 
 
@@ -177,7 +180,7 @@ def to_html(table: pd.DataFrame, title: str) -> str:
         '<li><span class="na">n/a</span>: the column does not apply to the metric (hover for why); '
         "an empty cell in metrics.csv.</li>"
         '<li><span class="undefined">undefined</span>: the column applies but has no value, for the reason '
-        "given; an empty cell (NaN) in metrics.csv, never a number.</li></ul>")
+        "in the row's last column; an empty cell (NaN) in metrics.csv, never a number.</li></ul>")
     return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
             + "\n".join(parts) + "\n</body></html>\n")

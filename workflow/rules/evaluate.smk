@@ -19,7 +19,7 @@ rule evaluate:
                       labels={"figure": "metrics over frames", "scene": "{name}"}),
         gif=report("results/{name}/plots/rollout.gif", caption="../report/rollout.rst",
                    category=report_category, subcategory="evaluation",
-                   labels={"figure": "rollout animation (DEM and Graph-DEM)", "scene": "{name}"}),
+                   labels={"figure": "rollout animation (GIF, a download)", "scene": "{name}"}),
     params:
         evaluation=evaluation_args,
         runtime=runtime_json,
