@@ -82,7 +82,7 @@ def _scene_metrics(scene: str) -> dict[str, set[str]]:
 
 
 def _is_nan(value) -> bool:
-    return value is None or (isinstance(value, float) and math.isnan(value)) or pd.isna(value)
+    return value is None or bool(pd.isna(value))
 
 
 def why_undefined(row: pd.Series, kind: str, column: str) -> str:

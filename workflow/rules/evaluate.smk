@@ -1,6 +1,7 @@
 # Stage evaluate: scene metrics and rollout MSE of Graph-DEM beside constant velocity (docs/surrogate.md).
 # A scene scores its test sims from the rollout stage; a public benchmark rolls out its evaluation split
 # (test, or valid where the source has none, which every output then says) under each protocol K.
+# metrics.html is metrics.csv as the report's table, every empty cell named n/a or undefined.
 rule evaluate:
     input:
         checkpoint="results/{name}/model/best.pt",
@@ -31,5 +32,6 @@ rule evaluate:
         "results/{name}/benchmarks/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
-        "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} --per-step {output.per_step:q} "
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} "
+        "--per-step {output.per_step:q} "
         "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"
