@@ -10,18 +10,28 @@ STAMP := $(VENV)/.graphdem-installed
 APT_STAMP := $(VENV)/.graphdem-apt
 TARGET ?= results/slide/metrics.csv
 CORES ?= 2
-APT_PACKAGES := lammps yade python3-venv
+# Debian packages, each with the command that tells it is there (-: none, dpkg decides): the DEM engines, venv,
+# and Chromium with its WebDriver for the test that renders snakemake --report in a browser.
+APT_PACKAGES := lammps:lmp yade:yade python3-venv:- chromium:chromium chromium-driver:chromedriver
 
 .PHONY: install run test lint clean-results
 
 install: $(STAMP)
 
-$(APT_STAMP):
-	@if command -v lmp >/dev/null && command -v yade >/dev/null; then \
-	  echo "[install] lammps and yade already present"; \
+# Installs only what is missing (a machine with lammps and yade still gets chromium); rechecked when this
+# Makefile changes.
+$(APT_STAMP): Makefile
+	@missing=""; \
+	for entry in $(APT_PACKAGES); do \
+	  pkg=$${entry%%:*}; cmd=$${entry#*:}; \
+	  if [ "$$cmd" != "-" ] && command -v "$$cmd" >/dev/null; then continue; fi; \
+	  dpkg-query -W -f='$${Status}' "$$pkg" 2>/dev/null | grep -q "ok installed" || missing="$$missing $$pkg"; \
+	done; \
+	if [ -z "$$missing" ]; then \
+	  echo "[install] apt packages already present"; \
 	else \
-	  echo "[install] apt-get install $(APT_PACKAGES)"; \
-	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $(APT_PACKAGES); \
+	  echo "[install] apt-get install$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 	@mkdir -p $(VENV) && touch $@
 

@@ -136,9 +136,12 @@ def cmd_evaluate(args) -> None:
         print(f"K = {k}:\n{evaluate.report(table)}")
     table, steps, sims = pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first
     evaluate.write(table, steps, args.out, args.per_step)
+    scene = str(table["scene"].iloc[0])
+    name = str(sims[0].traj.parameters.get("dataset", scene))
+    if args.table_html:
+        from surrogate import metrics_table
+        metrics_table.write(args.out, args.table_html, f"{name}: Graph-DEM and constant velocity on the {split} sims")
     if args.plots:
-        scene = str(table["scene"].iloc[0])
-        name = str(sims[0].traj.parameters.get("dataset", scene))
         nominal_time = scene == "solidgn"         # Solid-GN stores a nominal dt: frames are the honest axis
         ks = ", ".join(str(k) for k in args.history)
         plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
@@ -326,6 +329,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "one table with a row set per K (the history column), plots of all, the GIF of the first")
     p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
     p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
+    p.add_argument("--table-html", type=Path,
+                   help="metrics CSV as an HTML table whose empty cells say n/a or undefined and why (the report's)")
     p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
     _body_displacement(p)
     p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from generators import config as gconfig
 from generators import locks as glocks
+from generators import report as greport
 from generators import engine as gengine
 from generators import scales as gscales
 from generators import scenes as gscenes
@@ -50,6 +51,14 @@ wildcard_constraints:
     name="|".join(SCENES + BENCHMARKS),
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
+
+
+def report_category(wildcards) -> str:
+    """A result's category in snakemake --report: its scene or public benchmark (the subcategory is the
+    stage). Snakemake calls this only while it builds a report, before adding the first result, so it
+    first refuses a report whose jobs never ran under the report's config (generators/report.py)."""
+    greport.check(workflow.dag)
+    return getattr(wildcards, "scene", None) or wildcards.name
 
 
 def _json(value) -> str:

@@ -7,7 +7,9 @@ rule dataset:
     output:
         splits="results/{name}/dataset/splits.csv",
         stats="results/{name}/dataset/stats.json",
-        plot=report("results/{name}/plots/dataset_sample.png", caption="../report/dataset.rst", category="dataset"),
+        plot=report("results/{name}/plots/dataset_sample.png", caption="../report/dataset.rst",
+                    category=report_category, subcategory="dataset",
+                    labels={"figure": "dataset sample (first and last frame)", "scene": "{name}"}),
     params:
         radius=connectivity_radius,
     log:

@@ -1,17 +1,26 @@
 # Stage evaluate: scene metrics and rollout MSE of Graph-DEM beside constant velocity (docs/surrogate.md).
 # A scene scores its test sims from the rollout stage; a public benchmark rolls out its evaluation split
 # (test, or valid where the source has none, which every output then says) under each protocol K.
+# metrics.html is metrics.csv as the report's table, every empty cell named n/a or undefined.
 rule evaluate:
     input:
         checkpoint="results/{name}/model/best.pt",
         splits="results/{name}/dataset/splits.csv",
         rollouts=evaluated_rollouts,
     output:
-        metrics=report("results/{name}/metrics.csv", caption="../report/metrics.rst", category="evaluation"),
+        metrics=report("results/{name}/metrics.csv", caption="../report/metrics.rst",
+                       category=report_category, subcategory="evaluation",
+                       labels={"figure": "metrics.csv (download)", "scene": "{name}"}),
+        table=report("results/{name}/metrics.html", caption="../report/metrics_table.rst",
+                     category=report_category, subcategory="evaluation",
+                     labels={"figure": "metrics table", "scene": "{name}"}),
         per_step="results/{name}/metrics_per_step.csv",
         frames=report("results/{name}/plots/metrics_over_frames.png", caption="../report/metrics_over_frames.rst",
-                      category="evaluation"),
-        gif=report("results/{name}/plots/rollout.gif", caption="../report/rollout.rst", category="evaluation"),
+                      category=report_category, subcategory="evaluation",
+                      labels={"figure": "metrics over frames", "scene": "{name}"}),
+        gif=report("results/{name}/plots/rollout.gif", caption="../report/rollout.rst",
+                   category=report_category, subcategory="evaluation",
+                   labels={"figure": "rollout animation (GIF, a download)", "scene": "{name}"}),
     params:
         evaluation=evaluation_args,
         runtime=runtime_json,
@@ -23,5 +32,6 @@ rule evaluate:
         "results/{name}/benchmarks/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
-        "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} "
+        "--per-step {output.per_step:q} "
         "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"

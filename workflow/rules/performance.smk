@@ -51,8 +51,12 @@ rule performance:
         tables=contender_tables,
         packings=timed_packings,
     output:
-        table=report("results/{scene}/performance.csv", caption="../report/performance.rst", category="performance"),
-        plot=report("results/{scene}/plots/pareto.png", caption="../report/performance.rst", category="performance"),
+        table=report("results/{scene}/performance.csv", caption="../report/performance.rst",
+                     category=report_category, subcategory="performance",
+                     labels={"figure": "performance.csv (download)", "scene": "{scene}"}),
+        plot=report("results/{scene}/plots/pareto.png", caption="../report/performance.rst",
+                    category=report_category, subcategory="performance",
+                    labels={"figure": "run time against error (Pareto front)", "scene": "{scene}"}),
     params:
         main=stage_setting("performance", "main"),
         reference=stage_setting("performance", "reference"),

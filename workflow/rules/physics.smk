@@ -5,7 +5,9 @@ rule physics:
         sims=all_sims,
     output:
         table="results/{scene}/physics.csv",
-        plot=report("results/{scene}/plots/physics.png", caption="../report/physics.rst", category="physics"),
+        plot=report("results/{scene}/plots/physics.png", caption="../report/physics.rst",
+                    category=report_category, subcategory="physics",
+                    labels={"figure": "DEM against published physics", "scene": "{scene}"}),
     log:
         "results/{scene}/logs/physics.log",
     benchmark:

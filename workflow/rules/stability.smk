@@ -43,7 +43,9 @@ rule stability:
         dem="results/{scene}/stability/dem.csv",
         surrogate="results/{scene}/stability/surrogate.csv",
     output:
-        report("results/{scene}/stability.csv", caption="../report/stability.rst", category="stability"),
+        report("results/{scene}/stability.csv", caption="../report/stability.rst",
+               category=report_category, subcategory="stability",
+               labels={"figure": "stability.csv (download)", "scene": "{scene}"}),
     log:
         "results/{scene}/logs/stability.log",
     benchmark:

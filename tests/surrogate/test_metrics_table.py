@@ -1,0 +1,63 @@
+"""The report's metrics table: every empty cell of metrics.csv is named n/a or undefined (with why), and the
+numbers are the CSV's."""
+
+import math
+import re
+
+import pandas as pd
+
+from surrogate import metrics_table
+
+NAN = math.nan
+COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
+           "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims", "split", "split_note", "history"]
+ROWS = [
+    ("slide", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test", NAN, 6),
+    ("slide", "constant_velocity", "rollout MSE", "all", NAN, 2.25, NAN, 2.25, 1, 14, NAN, 0, NAN, "test", NAN, 6),
+    ("slide", "graphdem", "Slide Num", "all", NAN, NAN, 18.5, NAN, 1, 14, 0, 1, "slide_0003", "test", NAN, 6),
+    ("slide", "constant_velocity", "Slide Num", "all", NAN, NAN, NAN, NAN, 1, 14, 14, 0, NAN, "test", NAN, 6),
+    ("slide", "constant_velocity", "Max Ht", "all", 95.02, NAN, 34.66, 35.77, 1, 14, 0, 0, NAN, "test", NAN, 6),
+    ("slide", "constant_velocity", "Dis", "all", NAN, NAN, NAN, 28.26, 1, 14, 0, 0, NAN, "test", NAN, 6),
+    ("slide", "graphdem", "seconds per frame", "all", NAN, NAN, NAN, 0.013, 1, NAN, NAN, NAN, NAN, "test", NAN, 6),
+    ("slide", "graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test",
+     NAN, 6),
+]
+
+
+def cells(page: str) -> dict[tuple[str, str, str], list[str]]:
+    """(method, metric, sim) -> the texts of the row's cells, tags removed."""
+    out = {}
+    for row in re.findall(r"<tr>(.*?)</tr>", page, re.S):
+        texts = [re.sub(r"<[^>]+>", " ", c).split() for c in re.findall(r"<td[^>]*>(.*?)</td>", row, re.S)]
+        texts = [" ".join(t) for t in texts]
+        if texts:
+            out[(texts[0], texts[1].split(" (")[0], texts[2])] = texts
+    return out
+
+
+def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
+    csv = tmp_path / "metrics.csv"
+    pd.DataFrame(ROWS, columns=COLUMNS).to_csv(csv, index=False)
+    before = csv.read_bytes()
+    page = metrics_table.write(csv, tmp_path / "metrics.html", "slide: metrics").read_text()
+    assert csv.read_bytes() == before                       # the CSV is only read
+    assert "nan" not in re.sub(r"<[^>]+>", " ", page).lower().split()
+    rows = cells(page)
+    # columns: method metric sim | Acc MSE truth prediction sims frames left-out blown-up | why
+    blown = rows[("graphdem", "rollout MSE", "all")]
+    assert blown[3:5] == ["n/a", "undefined"] and blown[6] == "undefined"
+    assert blown[-1] == "1 rollout(s) blew up: slide_0003" and blown[-2] == "1 slide_0003"
+    baseline = rows[("constant_velocity", "rollout MSE", "all")]
+    assert baseline[3:7] == ["n/a", "2.25", "n/a", "2.25"] and baseline[-1] == ""
+    flagged = rows[("graphdem", "Slide Num", "all")]        # truth defined, the rollout blew up
+    assert flagged[3:7] == ["undefined", "n/a", "18.5", "undefined"] and "blew up" in flagged[-1]
+    no_truth = rows[("constant_velocity", "Slide Num", "all")]
+    assert no_truth[3] == "undefined" and "truth is zero or undefined in every scored frame" in no_truth[-1]
+    assert "undefined in all 14 scored frames" in no_truth[-1]
+    assert rows[("constant_velocity", "Max Ht", "all")][3:7] == ["95.02", "n/a", "34.66", "35.77"]
+    dis = rows[("constant_velocity", "Dis", "all")]          # compares prediction with truth: no Acc, no truth
+    assert dis[3:7] == ["n/a", "n/a", "n/a", "28.26"] and dis[-1] == ""
+    timing = rows[("graphdem", "seconds per frame", "all")]
+    assert timing[3:11] == ["n/a", "n/a", "n/a", "0.013", "1", "n/a", "n/a", "n/a"]
+    assert rows[("graphdem", "rollout MSE", "slide_0003")][4] == "undefined"
+    assert "<h2>Per sim</h2>" in page and "split test" in page and "K = 6" in page
