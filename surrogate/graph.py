@@ -1,8 +1,10 @@
 """Neighbour graphs for Graph-DEM (article 4.2.2), on the positions' device.
 
 PyG's ``radius_graph`` needs pyg-lib or torch-cluster; we build the same graph ourselves: a directed
-edge (sender i -> receiver j) for every pair closer than R (strictly, the distance computed in the
-positions' dtype), in both directions, plus a self edge on every node. Pairs of two kinematic
+edge (sender i -> receiver j) for every pair closer than R, in both directions, plus a self edge on
+every node. Closer than R means strictly: the squared distance, summed over the axes in the
+positions' dtype, below R^2 rounded to that dtype (no square root: torch's and NumPy's roundings
+of it differ). Pairs of two kinematic
 particles get no edge (their interaction never changes a prediction). The result is ``edge_index``
 [2, E] int64 on the positions' device; the edge order is unspecified.
 
@@ -49,7 +51,7 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
         raise ValueError(f"unknown radius graph method {method!r}: auto, kdtree or cells")
     if kinematic is not None:
         kin = torch.as_tensor(kinematic, dtype=torch.bool).to(x.device)
-        pairs = pairs[:, ~(kin[pairs[0]] & kin[pairs[1]])]
+        pairs = pairs[:, ~(kin.index_select(0, pairs[0]) & kin.index_select(0, pairs[1]))]
     return both_ways(pairs, len(x), self_loops)
 
 
@@ -60,10 +62,11 @@ def choose_method(pos: torch.Tensor) -> Method:
 
 def both_ways(pairs: torch.Tensor, n: int, self_loops: bool) -> torch.Tensor:
     """[2, 2P (+ n)] edges from [2, P] unordered pairs: both directions, then the self edges."""
-    edges = [pairs, pairs.flip(0)]
-    if self_loops:
-        edges.append(torch.arange(n, device=pairs.device).expand(2, n))
-    return torch.cat(edges, dim=1)
+    loops = [torch.arange(n, device=pairs.device)] if self_loops else []
+    edges = torch.empty((2, 2 * pairs.shape[1] + len(loops) * n), dtype=torch.int64, device=pairs.device)
+    torch.cat([pairs[0], pairs[1], *loops], out=edges[0])
+    torch.cat([pairs[1], pairs[0], *loops], out=edges[1])
+    return edges
 
 
 def kdtree_pairs(pos: torch.Tensor, radius: float) -> torch.Tensor:
@@ -71,10 +74,10 @@ def kdtree_pairs(pos: torch.Tensor, radius: float) -> torch.Tensor:
     x = pos.cpu().numpy()
     if len(x) < 2:
         return torch.empty((2, 0), dtype=torch.int64, device=pos.device)
-    # the tree measures in float64: a little beyond R, so the strict test below in pos's dtype decides
+    # the tree measures in float64: a little beyond R, so that the strict test below decides
     pairs = cKDTree(x).query_pairs(radius * (1 + 1e-6), output_type="ndarray")
-    dist = np.sqrt(((x[pairs[:, 0]] - x[pairs[:, 1]]) ** 2).sum(axis=1))
-    pairs = pairs[dist < np.asarray(radius, dtype=x.dtype)]
+    squared = ((x[pairs[:, 0]] - x[pairs[:, 1]]) ** 2).sum(axis=1)
+    pairs = pairs[squared < np.asarray(radius * radius, dtype=x.dtype)]
     return torch.from_numpy(pairs.T.astype(np.int64)).to(pos.device)
 
 
@@ -88,26 +91,37 @@ def cell_list_pairs(pos: torch.Tensor, radius: float, chunk: int = CANDIDATE_CHU
     cells = cell_coordinates(pos, radius)
     strides = cell_strides(cells)
     key, order = torch.sort((cells * strides).sum(dim=1))
-    near = pos[order]                                    # positions in cell order: neighbours are ranges
+    near = pos.index_select(0, order).T.contiguous()    # [D, N] in cell order: a cell's particles are a range
     cell_key, count = torch.unique_consecutive(key, return_counts=True)
     end = count.cumsum(0)
     start = end - count
-    rank = torch.arange(n, device=pos.device)
+    own = torch.repeat_interleave(torch.arange(len(count), device=pos.device), count, output_size=n)
     found = []
     for offset in half_offsets(dim):
-        if any(offset):
-            shifted = key + int(np.dot(offset, strides.tolist()))
+        if any(offset):                                 # a neighbour cell: all its particles, if it has any
+            shifted = cell_key + int(np.dot(offset, strides.tolist()))
             slot = torch.searchsorted(cell_key, shifted).clamp_(max=len(cell_key) - 1)
-            begin = start[slot]
-            length = torch.where(cell_key[slot] == shifted, count[slot], 0)
+            length = torch.where(cell_key.index_select(0, slot) == shifted, count.index_select(0, slot), 0)
+            begin, length = start.index_select(0, slot).index_select(0, own), length.index_select(0, own)
         else:                                           # the own cell: only the particles after this one
-            begin = rank + 1
-            length = torch.repeat_interleave(end, count, output_size=n) - begin
+            begin = torch.arange(1, n + 1, device=pos.device)
+            length = end.index_select(0, own) - begin
         for lo, hi in chunk_bounds(length, chunk):
             i, j = expand_ranges(lo, begin[lo:hi], length[lo:hi])
-            close = (near[i] - near[j]).pow(2).sum(dim=1).sqrt() < radius
-            found.append(order[torch.stack([i[close], j[close]])])
+            close = (squared_distance(near, i, j) < radius * radius).nonzero().squeeze(1)
+            pair = torch.stack([i.index_select(0, close), j.index_select(0, close)])
+            found.append(order.index_select(0, pair.flatten()).view(2, -1))
     return torch.cat(found, dim=1)
+
+
+def squared_distance(axes: torch.Tensor, i: torch.Tensor, j: torch.Tensor) -> torch.Tensor:
+    """|p_i - p_j|^2 from [D, N] coordinates, summed axis by axis as NumPy sums a row (same rounding)."""
+    total = None
+    for axis in axes:
+        gap = axis.index_select(0, i).sub_(axis.index_select(0, j))
+        gap.mul_(gap)
+        total = gap if total is None else total.add_(gap)
+    return total
 
 
 def cell_coordinates(pos: torch.Tensor, radius: float) -> torch.Tensor:
@@ -152,9 +166,9 @@ def chunk_bounds(n_cand: torch.Tensor, chunk: int) -> list[tuple[int, int]]:
     return [(lo, hi) for lo, hi in itertools.pairwise(bounds) if lo < hi]
 
 
-def expand_ranges(first: int, begin: torch.Tensor, length: torch.Tensor) -> torch.Tensor:
-    """[2, sum(length)] pairs (first + k, begin[k] + m) for m in range(length[k]), vectorised."""
+def expand_ranges(first: int, begin: torch.Tensor, length: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Rows and columns of the pairs (first + k, begin[k] + m) for m in range(length[k]), vectorised."""
     total = int(length.sum())
     row = torch.repeat_interleave(torch.arange(len(length), device=length.device), length, output_size=total)
     shift = begin - (length.cumsum(0) - length)        # column = shift[row] + position in the flat list
-    return torch.stack([row + first, shift[row] + torch.arange(total, device=length.device)])
+    return row + first, shift.index_select(0, row) + torch.arange(total, device=length.device)
