@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from generators import h5md
-from surrogate.graph import cell_list_pairs, choose_method, radius_graph
+from surrogate.graph import cell_list_pairs, choose_method, choose_split, kdtree_pairs, radius_graph
 
 METHODS = ["kdtree", "cells"]
 
@@ -33,6 +33,10 @@ def cdist_edges(x: torch.Tensor, r: float, kinematic: torch.Tensor | None = None
 
 def as_set(edge_index):
     return set(map(tuple, edge_index.T.tolist()))
+
+
+def unordered(pairs):
+    return as_set(pairs.sort(dim=0).values)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -81,13 +85,21 @@ def test_isolated_and_empty_and_single(method):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_cell_list_far_apart_clusters_and_small_chunks(dim):
+def test_cell_list_far_apart_clusters_every_cell_size_and_small_chunks(dim):
     gen = torch.Generator().manual_seed(0)
     blob = torch.rand(200, dim, generator=gen, dtype=torch.float64) * 3
-    x = torch.cat([blob - 1e9, blob, blob + 1e9, blob * 1e-3 + 5e8])              # ~1e9 empty cells between
-    expected = as_set(radius_graph(x, 0.7, method="kdtree"))
-    assert as_set(radius_graph(x, 0.7, method="cells")) == expected
-    assert as_set(cell_list_pairs(x, 0.7, chunk=300)) == as_set(cell_list_pairs(x, 0.7))
+    lattice = torch.randint(0, 6, (100, dim), generator=gen).double() * 0.35     # exact distances 0.7
+    x = torch.cat([blob - 1e9, blob, blob + 1e9, blob * 1e-3 + 5e8, lattice, lattice[:20]])
+    expected = unordered(kdtree_pairs(x, 0.7))
+    for split in (1, 2, 3, 4):
+        pairs = cell_list_pairs(x, 0.7, split=split)
+        assert unordered(pairs) == expected and pairs.shape[1] == len(expected)
+    assert unordered(cell_list_pairs(x, 0.7, split=2, chunk=300)) == expected
+
+
+def test_cell_size_follows_density():
+    sparse, dense = torch.rand(100, 2) * 100, torch.rand(10_000, 3)
+    assert choose_split(sparse, 1.0) == 1 and choose_split(dense, 0.1) == 2 and choose_split(dense, 1.0) == 4
 
 
 def test_cell_list_refuses_non_finite_positions():
