@@ -2,23 +2,26 @@
 
 PyG's ``radius_graph`` needs pyg-lib or torch-cluster; we build the same graph ourselves: a directed
 edge (sender i -> receiver j) for every pair closer than R, in both directions, plus a self edge on
-every node. Closer than R means strictly: the squared distance, summed over the axes in the
-positions' dtype, below R^2 rounded to that dtype (no square root: torch's and NumPy's roundings
-of it differ). Pairs of two kinematic
-particles get no edge (their interaction never changes a prediction). The result is ``edge_index``
-[2, E] int64 on the positions' device; the edge order is unspecified.
+every node; pairs of two kinematic particles get no edge (their interaction never changes a
+prediction). Closer than R is strict: the squared distance, summed axis by axis in the positions'
+dtype, below R^2 rounded to that dtype (no square root: torch's and NumPy's roundings of it differ).
+The result is ``edge_index`` [2, E] int64 on the positions' device; the edge order is unspecified.
 
-Two implementations give identical edge sets (tests):
-- ``"kdtree"``: scipy's cKDTree on the CPU (NumPy), edges copied to the positions' device;
-- ``"cells"``: a cell list in torch, on the positions' device: particles binned into cells of side
-  >= R and sorted by cell key (row-major), so that 3 cells consecutive along the last axis are one
-  range of particles; for each of the (3^(D-1) + 1)/2 such strips that see each pair once (2 in 2D,
-  5 in 3D) the candidates are found with ``searchsorted`` and kept where closer than R. Vectorised over particles,
-  its memory is the edges plus about ``CANDIDATE_CHUNK`` candidate pairs at a time.
+Two implementations give the same edge set (tests):
+- ``"kdtree"``: scipy's cKDTree on the CPU (NumPy); the edges are copied to the positions' device.
+- ``"cells"``: a cell list in torch on the positions' device. Particles are binned into cells of
+  side R/k (k = 1-4 from the density, ``choose_split``) and sorted by row-major cell key, so the
+  2k + 1 cells along the last axis around a cell are one range of particles; the
+  ((2k + 1)^(D-1) + 1)/2 such strips that see every pair once (2 in 2D, 5 in 3D at k = 1) give
+  candidate ranges by ``searchsorted``, kept where closer than R. Vectorised over particles (a
+  Python loop over strips and chunks only); working memory: the edges plus ``CANDIDATE_CHUNK``
+  candidates at a time.
 
-Rule (``method="auto"``): the cell list for tensors on any device but the CPU, the k-d tree on the
-CPU, where it was faster at every measured size from 700 to 200 000 particles in 2D and 3D
-(docs/surrogate.md, ``python -m surrogate.bench_graph``). ``method`` forces either one.
+Rule (``method="auto"``, ``choose_method``): the cell list on every device but the CPU; on the CPU
+the k-d tree below ``CPU_CELLS_FROM`` particles and the cell list from there. Measured on one CPU
+thread (``python -m surrogate.bench_graph``, table in docs/surrogate.md): the k-d tree is 1.5-5x
+faster up to ~2 000 particles, the two are within the noise between ~4 000 and ~20 000, and the
+cell list is 10-40 % faster from 50 000. ``method`` forces either one.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from scipy.spatial import cKDTree
 
 Method = Literal["auto", "kdtree", "cells"]
 CANDIDATE_CHUNK = 1 << 22      # candidate pairs checked at once by the cell list (bounds its working memory)
+CPU_CELLS_FROM = 20_000        # particles from which the cell list builds CPU graphs (module docstring)
 
 
 def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
@@ -57,8 +61,8 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
 
 
 def choose_method(pos: torch.Tensor) -> Method:
-    """The measured rule: the k-d tree for CPU tensors, the cell list on any other device."""
-    return "kdtree" if pos.device.type == "cpu" else "cells"
+    """The measured rule: the cell list off the CPU and for ``CPU_CELLS_FROM`` particles or more."""
+    return "cells" if pos.device.type != "cpu" or len(pos) >= CPU_CELLS_FROM else "kdtree"
 
 
 def both_ways(pairs: torch.Tensor, n: int, self_loops: bool) -> torch.Tensor:

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from generators import h5md
-from surrogate.graph import cell_list_pairs, choose_method, choose_split, kdtree_pairs, radius_graph
+from surrogate.graph import CPU_CELLS_FROM, cell_list_pairs, choose_method, choose_split, kdtree_pairs, radius_graph
 
 METHODS = ["kdtree", "cells"]
 
@@ -112,7 +112,7 @@ def test_output_device_and_dispatch():
     for method in METHODS:
         edges = radius_graph(x, 0.3, method=method)
         assert edges.device == x.device and edges.dtype == torch.int64
-    assert choose_method(x) == "kdtree"
+    assert choose_method(x) == "kdtree" and choose_method(torch.empty(CPU_CELLS_FROM, 3)) == "cells"
     meta = torch.empty(1, 3, device="meta")                # no data on meta: only the sizes that need none
     assert choose_method(meta) == "cells"
     for n in (0, 1):
