@@ -19,9 +19,9 @@ Two implementations give the same edge set (tests):
 
 Rule (``method="auto"``, ``choose_method``): the cell list on every device but the CPU; on the CPU
 the k-d tree below ``CPU_CELLS_FROM`` particles and the cell list from there. Measured on one CPU
-thread (``python -m surrogate.bench_graph``, table in docs/surrogate.md): the k-d tree is 1.5-5x
-faster up to ~2 000 particles, the two are within the noise between ~4 000 and ~20 000, and the
-cell list is 10-40 % faster from 50 000. ``method`` forces either one.
+thread (``python -m surrogate.bench_graph``, table in docs/surrogate.md): the k-d tree is 1.6-2x
+faster at 700 particles and up to 1.4x at 2 000, the two trade places around 6 000, and from
+20 000 the cell list was 6-39 % faster in every run. ``method`` forces either one.
 """
 
 from __future__ import annotations
