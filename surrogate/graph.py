@@ -45,7 +45,7 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
     """``edge_index`` [2, E] (row 0 senders, row 1 receivers) of all pairs with distance < radius,
     on ``pos``'s device; ``method`` as the module docstring says."""
     x = pos if isinstance(pos, torch.Tensor) else torch.from_numpy(np.asarray(pos))
-    x = x.detach()
+    x = x.detach() if x.is_floating_point() else x.double()
     if method == "auto":
         method = choose_method(x)
     if method == "kdtree":

@@ -82,6 +82,8 @@ def test_isolated_and_empty_and_single(method):
     assert as_set(radius_graph(np.array([[5.0, 5.0]]), 1.0, method=method)) == {(0, 0)}
     x = np.array([[0.0, 0.0], [100.0, 100.0]])
     assert as_set(radius_graph(x, 1.0, self_loops=False, method=method)) == set()
+    grid = np.array([[0, 0], [1, 1], [3, 3]])                # integer positions: R is not rounded to an integer
+    assert as_set(radius_graph(grid, 1.5, self_loops=False, method=method)) == {(0, 1), (1, 0)}
 
 
 @pytest.mark.parametrize("dim", [2, 3])
