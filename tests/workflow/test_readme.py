@@ -32,7 +32,7 @@ def documented_lines() -> list[str]:
     """Command lines of the README's code blocks and of the Snakefile's header comment, comments removed."""
     lines = []
     for block in re.findall(r"```[a-z]*\n(.*?)```", (ROOT / "README.md").read_text(), re.S):
-        lines += [line for line in block.splitlines() if line.startswith(("snakemake ", "graphdem"))]
+        lines += [line for line in block.splitlines() if line.startswith(("snakemake ", "graphdem "))]
     for line in SNAKEFILE.read_text().splitlines():
         if not line.startswith("#"):
             break

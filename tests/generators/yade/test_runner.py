@@ -1,10 +1,12 @@
 """YADE run headless: no server is ever started, no socket listens while a job runs, and two jobs side by
 side agree."""
 
+import os
 import re
 import subprocess
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 
@@ -32,10 +34,28 @@ def test_two_jobs_side_by_side_start_no_server_and_agree(tmp_path):
         assert run.notes["listening_sockets"] == []
 
 
+def _descends_from_this_test(pid: int) -> bool:
+    """Whether process ``pid`` is this test process or one it started (directly or not)."""
+    while pid > 1:
+        if pid == os.getpid():
+            return True
+        try:
+            pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])   # the parent's pid
+        except (OSError, ValueError, IndexError):
+            return False
+    return False
+
+
 def listeners() -> set[tuple[str, str]]:
-    """(local address, process) of every listening TCP socket on this machine (ss -ltnp)."""
+    """(local address, process) of every listening TCP socket held by this test's processes (ss -ltnp); other
+    programs on the machine are not this test's business."""
     out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, check=True).stdout
-    return {(line.split()[3], ",".join(re.findall(r'"([^"]+)"', line))) for line in out.splitlines() if line.strip()}
+    held = set()
+    for line in out.splitlines():
+        pids = [int(p) for p in re.findall(r"pid=(\d+)", line)]
+        if line.strip() and any(_descends_from_this_test(p) for p in pids):
+            held.add((line.split()[3], ",".join(re.findall(r'"([^"]+)"', line))))
+    return held
 
 
 def test_a_shear_job_opens_no_port_while_it_runs(tmp_path):
