@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import torch
 
-SPEC = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+SPEC = re.compile(r"^(auto|cpu|cuda(:[0-9]+)?)$")
 CHOICES = "auto, cpu, cuda or cuda:N"
 
 

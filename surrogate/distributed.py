@@ -101,7 +101,7 @@ def total(value: torch.Tensor, world: World) -> torch.Tensor:
 
 def mean(value: torch.Tensor, world: World) -> float:
     """Mean over the processes of a one-element tensor, as a float (the value itself for one process)."""
-    return float(total(value, world)) / world.size
+    return float(total(value.detach(), world)) / world.size
 
 
 def barrier(world: World) -> None:
@@ -124,4 +124,4 @@ def wrap(module: torch.nn.Module, world: World, device: torch.device) -> torch.n
     if not world.distributed:
         return module
     ids = [device.index] if device.type == "cuda" else None
-    return torch.nn.parallel.DistributedDataParallel(module, device_ids=ids, broadcast_buffers=False)
+    return torch.nn.parallel.DistributedDataParallel(module, device_ids=ids, forward_sync_buffers=False)

@@ -16,7 +16,10 @@ rule evaluate:
         evaluation=evaluation_args,
         runtime=runtime_json,
         body=body_displacement_arg,
+        device=device_arg,
     threads: 1
+    resources:
+        gpus=job_gpus,
     log:
         "results/{name}/logs/evaluate.log",
     benchmark:
@@ -24,4 +27,4 @@ rule evaluate:
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
-        "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"
+        "--plots results/{wildcards.name}/plots {params.body:q} {params.device:q} --no-progress > {log} 2>&1"
