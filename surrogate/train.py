@@ -211,7 +211,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
     (:mod:`surrogate.distributed`) and the ``threads`` of a node are shared among its processes.
     """
     world = distributed.World.from_env()
-    where = devices.resolve(device, world.local_rank)
+    where = devices.resolve(device, world.local_rank if world.distributed else None)
     with distributed.session(world, where):
         return _train(Path(stats_path), Path(splits_csv), model_cfg, train_cfg, Path(out_dir), threads, fresh,
                       max_steps, progress, world, where)
