@@ -175,6 +175,10 @@ def validate(config: dict) -> dict:
 
 def _check_semantics(config: dict) -> None:
     from generators import scenes
+    launch = config["launch"]
+    if launch["launcher"] == "plain" and launch["processes"] > 1:
+        raise ConfigError(f"config key 'launch.processes' = {launch['processes']} needs 'launch.launcher' = "
+                          f"'torchrun' (plain starts one process)")
     for name, scene in scenes.registry().items():
         cfg = config[name]
         lo, hi = cfg["radius"]

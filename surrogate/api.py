@@ -17,10 +17,11 @@ from surrogate import rollout as rollouts
 from surrogate.simulator import LearnedSimulator
 
 
-def load_simulator(path: str | Path) -> LearnedSimulator:
-    """The trained simulator of a ``best.pt`` or ``last.pt``, in eval mode; ``.stats`` and ``.model_config``
-    hold the dataset statistics and model config it was trained with."""
-    return checkpoint.simulator_from(path)[0]
+def load_simulator(path: str | Path, device: str = "cpu") -> LearnedSimulator:
+    """The trained simulator of a ``best.pt`` or ``last.pt``, in eval mode, on ``device`` (``auto``, ``cpu``,
+    ``cuda`` or ``cuda:N``; a rollout runs there); ``.stats`` and ``.model_config`` hold the dataset statistics
+    and model config it was trained with."""
+    return checkpoint.simulator_from(path, device)[0]
 
 
 def _trajectory(sim: h5md.Trajectory | str | Path) -> tuple[h5md.Trajectory, Path]:

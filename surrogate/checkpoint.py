@@ -2,6 +2,8 @@
 
 Everything but tensors is stored as JSON text, so checkpoints load with
 ``torch.load(weights_only=True)``: a checkpoint file cannot execute code when it is read.
+Tensors are stored from the CPU whatever device trained them, and load onto any device
+(``map_location``; :func:`simulator_from` takes the ``device`` setting of :mod:`surrogate.devices`).
 """
 
 from __future__ import annotations
@@ -9,30 +11,49 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import Any
 
 import torch
 
 from generators.atomic import atomic_path
+from surrogate import devices
 from surrogate.errors import CheckpointError
 from surrogate.simulator import LearnedSimulator
 
 __all__ = ["CheckpointError", "digest", "load", "save", "simulator_from"]
 
 
+def _on_cpu(value: Any) -> Any:
+    """``value`` with every tensor in it (through dicts, lists and tuples) copied to the CPU."""
+    if isinstance(value, torch.Tensor):
+        return value.detach().cpu()
+    if isinstance(value, dict):           # a state dict keeps its type and its modules' version metadata
+        out = type(value)((k, _on_cpu(v)) for k, v in value.items())
+        if hasattr(value, "_metadata"):
+            out._metadata = value._metadata
+        return out
+    if isinstance(value, list | tuple):
+        return type(value)(_on_cpu(v) for v in value)
+    return value
+
+
 def save(path: Path, payload: dict) -> None:
-    """Write ``payload`` atomically; dict values under ``json`` are serialised as JSON text."""
-    data = dict(payload)
+    """Write ``payload`` atomically, its tensors from the CPU; dict values under ``json`` are serialised as
+    JSON text."""
+    data = _on_cpu({k: v for k, v in payload.items() if k != "json"})
     data["json"] = json.dumps(payload.get("json", {}), sort_keys=True)
     with atomic_path(Path(path)) as tmp:
         torch.save(data, tmp)
 
 
-def load(path: str | Path) -> dict:
+def load(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
+    """The checkpoint's tensors on ``map_location`` (``meta``: shapes and dtypes only, no data read into
+    memory) and its JSON metadata, checked to be a Graph-DEM checkpoint's."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint")
     try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
+        data = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:   # noqa: BLE001 - torch raises many types for a bad file
         raise CheckpointError(f"{path}: not a loadable Graph-DEM checkpoint (only tensors and plain "
                               f"data are accepted): {exc}") from exc
@@ -50,12 +71,14 @@ def load(path: str | Path) -> dict:
     return data
 
 
-def simulator_from(path: str | Path) -> tuple[LearnedSimulator, dict]:
-    """The trained simulator of a checkpoint, in eval mode, and the checkpoint's JSON metadata."""
-    data = load(path)
+def simulator_from(path: str | Path, device: str | torch.device = "cpu") -> tuple[LearnedSimulator, dict]:
+    """The trained simulator of a checkpoint on ``device`` (a setting of :mod:`surrogate.devices`: auto, cpu,
+    cuda, cuda:N), in eval mode, and the checkpoint's JSON metadata."""
+    where = devices.resolve(device)
+    data = load(path, map_location=where)
     meta = data["json"]
     try:
-        simulator = LearnedSimulator(meta["stats"], meta["model"])
+        simulator = LearnedSimulator(meta["stats"], meta["model"]).to(where)
         simulator.load_state_dict(data["model"])
     except (KeyError, RuntimeError, TypeError, ValueError, AttributeError) as exc:
         raise CheckpointError(f"{path}: weights do not fit the model it describes: {exc}") from exc

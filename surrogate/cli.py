@@ -47,42 +47,49 @@ def cmd_dataset(args) -> None:
         plots.first_last(args.plot, position, radius, traj.species, traj.time, lower, upper, title, names,
                          ylabel=ylabel)
 
-def _logging() -> None:
+def _logging(quiet: bool = False) -> None:
+    """INFO lines on stderr; only warnings where ``quiet`` (the processes of a multi-process training but rank 0)."""
     import logging
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
+                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
 
-def _train_sections(args) -> tuple[dict, dict, Path, Path, Path]:
-    """The model and train config, and the stats, splits and output folder, of ``graphdem train``: from the
-    resolved config's section of --scene (the workflow's keys), or from the rule's resolved sections."""
+def _train_sections(args) -> tuple[dict, dict, str, Path, Path, Path]:
+    """The model and train config, the device, and the stats, splits and output folder, of ``graphdem train``:
+    from the resolved config's section of --scene (the workflow's keys), or from the rule's resolved sections.
+    --device wins over the config's ``device``; without either, auto."""
     if args.model_json is not None or args.train_json is not None:
         if args.model_json is None or args.train_json is None or args.scene or args.config_file or args.set:
             raise SystemExit("graphdem train: --model-json and --train-json (the workflow's resolved sections) go "
                              "together and replace --scene, --config and --set")
-        model, train_cfg, where = args.model_json, args.train_json, None
+        model, train_cfg, where, device = args.model_json, args.train_json, None, args.device or "auto"
     else:
         if not args.scene:
             raise SystemExit("graphdem train: give --scene (a scene or public benchmark: "
                              f"{', '.join(scenes.names() + sorted(gcli.gconfig.BENCHMARKS))}) to train with its "
                              "model and train config")
-        section = gcli.resolved_config(args)[args.scene]
+        resolved = gcli.resolved_config(args)
+        section = resolved[args.scene]
         model, train_cfg, where = section["model"], section["train"], Path("results") / args.scene
+        device = args.device or resolved["device"]
     paths = []
     for value, default in ((args.stats, "dataset/stats.json"), (args.splits, "dataset/splits.csv"),
                            (args.out_dir, "model")):
         if value is None and where is None:
             raise SystemExit("graphdem train: --stats, --splits and --out-dir are needed with --model-json")
         paths.append(Path(value) if value is not None else where / default)
-    return model, train_cfg, *paths
+    return model, train_cfg, device, *paths
 
 
 def cmd_train(args) -> None:
-    from surrogate import train
-    model, train_cfg, stats, splits, out_dir = _train_sections(args)
-    _logging()
+    from surrogate import distributed, train
+    model, train_cfg, device, stats, splits, out_dir = _train_sections(args)
+    main = distributed.World.from_env().main
+    _logging(quiet=not main)
     state = train.train(stats, splits, model, train_cfg, out_dir,
                         threads=args.threads, fresh=args.fresh, max_steps=args.max_steps,
-                        progress=not args.no_progress)
-    print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
+                        progress=not args.no_progress, device=device)
+    if main:
+        print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
 
 def cmd_rollout(args) -> None:
     import torch
@@ -91,7 +98,7 @@ def cmd_rollout(args) -> None:
     from surrogate.samples import load_sim
     _logging()
     torch.set_num_threads(max(1, args.threads))
-    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    simulator, meta = checkpoint.simulator_from(args.checkpoint, args.device)
     simulator, rt = _runtime(args, simulator)
     sha = checkpoint.digest(args.checkpoint)
     for path in evaluate.data_files(args.data):
@@ -129,7 +136,7 @@ def cmd_evaluate(args) -> None:
                                                body_displacement=args.body_displacement, threads=args.threads,
                                                progress=not args.no_progress, split=split, split_note=note,
                                                runtime=_runtime_config(args),
-                                               allow_other_scene=args.allow_other_scene)
+                                               allow_other_scene=args.allow_other_scene, device=args.device)
         tables.append(table)
         per_step.append(steps)
         first = first or sims
@@ -179,7 +186,7 @@ def cmd_stability_surrogate(args) -> None:
     from surrogate.samples import load_sim
     _logging()
     torch.set_num_threads(max(1, args.threads))
-    simulator, meta = checkpoint.simulator_from(args.checkpoint)
+    simulator, meta = checkpoint.simulator_from(args.checkpoint, args.device)
     sims = [load_sim(p, meta["stats"], meta["model"].get("properties") or [], allow_other_scene=args.allow_other_scene)
             for p in evaluate.data_files(args.data)]
     rt = _runtime_config(args, required_by="stability-surrogate")
@@ -208,7 +215,8 @@ def cmd_performance_surrogate(args) -> None:
     from surrogate import performance
     result = performance.surrogate_contender(args.name, args.variant, args.checkpoint,
                                            _runtime_config(args, required_by="performance-surrogate"), args.data,
-                                           args.repeats, args.threads, body_displacement=args.body_displacement)
+                                           args.repeats, args.threads, body_displacement=args.body_displacement,
+                                           device=args.device)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
 
@@ -240,6 +248,22 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
     p.add_argument("--runtime-json", type=_json,
                    help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
                         "precision, sleep_speed; docs/performance.md); default: compute as in training")
+    _device(p, "auto")
+
+
+def _device(p: argparse.ArgumentParser, default: str | None) -> None:
+    from surrogate import devices
+    p.add_argument("--device", type=_device_arg, default=default,
+                   help=f"where the model computes: {devices.CHOICES} (auto: the first CUDA GPU torch sees, else the "
+                        "CPU; under torchrun each process takes its LOCAL_RANK's GPU; docs/scaling.md)"
+                        + ("" if default else "; default: the config's device key with --scene, else auto"))
+
+
+def _device_arg(value: str) -> str:
+    from surrogate import devices
+    if not devices.SPEC.match(value):
+        raise argparse.ArgumentTypeError(f"{value!r}: allowed are {devices.CHOICES}")
+    return value
 
 def _runtime_config(args, required_by: str | None = None):
     """The Runtime of --runtime-json; None without it, unless the command ``required_by`` needs it."""
@@ -299,7 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     # the workflow passes its already resolved sections (internal; users give --scene/--config/--set)
     p.add_argument("--model-json", type=_json, help=argparse.SUPPRESS)
     p.add_argument("--train-json", type=_json, help=argparse.SUPPRESS)
-    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--threads", type=int, default=1,
+                   help="torch CPU threads (under torchrun shared by the node's processes)")
+    _device(p, None)
     p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
     p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

@@ -165,14 +165,16 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, threads: int = 1, progress: bool = True,
              split: str = "test", split_note: str = "", runtime: Runtime | None = None,
-             allow_other_scene: bool = False) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+             allow_other_scene: bool = False,
+             device: str = "cpu") -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
     ``split`` and ``split_note`` name the split the sims come from in every row written; ``runtime``
-    sets the switches of rollouts made here (:mod:`surrogate.runtime`).
+    sets the switches of rollouts made here (:mod:`surrogate.runtime`), on ``device``
+    (:mod:`surrogate.devices`).
     """
     torch.set_num_threads(max(1, int(threads)))
-    simulator, meta = checkpoint.simulator_from(checkpoint_path)
+    simulator, meta = checkpoint.simulator_from(checkpoint_path, device)
     if runtime is not None:
         apply_runtime(simulator, runtime)
     if int(history) < int(meta["model"]["history"]):

@@ -30,7 +30,7 @@ import pandas as pd
 import torch
 
 from generators import blowup, convert, engine, h5md, scenes
-from surrogate import checkpoint
+from surrogate import checkpoint, devices
 from surrogate import runtime as rt
 from surrogate.evaluate import MSE, score, summarise
 from surrogate.rollout import rollout
@@ -118,18 +118,20 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
 
 
 def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: rt.Runtime, truths: list[Path],
-                        repeats: int, threads: int, seed: int = 0, body_displacement: float | None = None) -> dict:
+                        repeats: int, threads: int, seed: int = 0, body_displacement: float | None = None,
+                        device: str = "cpu") -> dict:
     """Time and score one surrogate contender (the trained checkpoint, or an untrained model of
-    other sizes when ``variant`` has size keys) on the sims ``truths``."""
+    other sizes when ``variant`` has size keys) on the sims ``truths``, computed on ``device``
+    (:mod:`surrogate.devices`; the row names the device it ran on)."""
     torch.set_num_threads(max(1, int(threads)))
-    simulator, meta = checkpoint.simulator_from(checkpoint_path)
+    simulator, meta = checkpoint.simulator_from(checkpoint_path, device)
     sizes = {k: variant[k] for k in SIZE_KEYS if k in variant}
     switches = {k: v for k, v in variant.items() if k not in SIZE_KEYS}
     runtime = rt.Runtime.from_config({**base.as_dict(), **switches})
     trained = not sizes
     if sizes:
         torch.manual_seed(seed)
-        simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).eval()
+        simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).to(devices.of(simulator)).eval()
     simulator = rt.apply(copy.deepcopy(simulator), runtime)
     props = list(meta["model"].get("properties") or [])
     seconds, scored, blown, work, graph_share, edges = [], [], [], [], [], []
@@ -156,7 +158,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "trained": trained, "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored),
            "seconds_per_rollout": float(np.mean(seconds)), "seconds_per_frame": sum(seconds) / n_frames,
            "particle_frames_per_second": sum(f * m for f, m, _ in work) / sum(seconds),
-           "peak_rss_mb": _peak_rss_mb(), "threads": int(threads),
+           "peak_rss_mb": _peak_rss_mb(), "threads": int(threads), "device": str(devices.of(simulator)),
            "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
            "parameters": sum(p.numel() for p in simulator.parameters()), "edges_per_step": float(np.mean(edges)),
            "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": gflop / n_frames,

@@ -15,6 +15,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from generators import h5md
+from surrogate import devices, samples
 from surrogate.graph import radius_graph
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
@@ -49,25 +50,25 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
         resting = ~kinematic & (speed < runtime.sleep_speed)
         awake = ~kinematic & ~resting
         if resting.any() and awake.any():
-            distance, _ = cKDTree(last[awake].double().numpy()).query(
-                last[resting].double().numpy(), distance_upper_bound=simulator.radius)
-            woken = torch.from_numpy(distance < simulator.radius)
+            distance, _ = cKDTree(last[awake].double().cpu().numpy()).query(
+                last[resting].double().cpu().numpy(), distance_upper_bound=simulator.radius)
+            woken = torch.from_numpy(distance < simulator.radius).to(last.device)
             resting[resting.clone()] = ~woken
         static = kinematic | resting
         counts["asleep"] += int(resting.sum())
-    edges = radius_graph(last, simulator.radius, static.numpy())
+    edges = radius_graph(last, simulator.radius, static.cpu().numpy()).to(last.device)
     graph = Graph(window, sim.types, static, edges, None if sim.props is None else sim.props.to(window.dtype))
     if runtime.prune_isolated:
         graph, index = prune_isolated(graph)
     else:
-        index = torch.arange(len(static))
+        index = torch.arange(len(static), device=static.device)
     sub_edges = graph.edge_index
     seconds_graph = time.perf_counter() - t0
     moving = (~graph.kinematic).nonzero().squeeze(1)       # only these are decoded and integrated
     counts["nodes"] += len(index)
     counts["edges"] += sub_edges.shape[1]
     counts["decoded"] += len(moving)
-    with runtime.autocast():
+    with runtime.autocast(last.device):
         acceleration = simulator(graph, decode=moving).to(window.dtype)
     predicted = simulator.integrate(graph.window[:, moving], acceleration)
     nxt = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
@@ -86,7 +87,8 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     :func:`surrogate.runtime.apply`); None computes as in training. ``start`` replaces the first G
     frames (e.g. a perturbed history for a stress test). ``forced`` feeds every step the data's
     window instead of the predicted one (one-step predictions on the true graphs: how an untrained
-    model of some size is timed on representative graphs).
+    model of some size is timed on representative graphs). It runs on the simulator's device (the sim
+    is copied there); the positions come back to the CPU.
     """
     k = simulator.history
     g = k if given is None else int(given)
@@ -97,10 +99,12 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
         raise ValueError(f"{sim.path}: a rollout needs more than {g} frames, the sim has {sim.n_frames}")
     if forced and total > sim.n_frames:
         raise ValueError(f"{sim.path}: a forced rollout needs the data's frames, {sim.n_frames} < {total}")
+    device = devices.of(simulator)
+    sim = samples.to_device(sim, device)
     dtype = runtime.network_dtype if runtime is not None else torch.float32
     reduced = runtime is not None and (runtime.prune_isolated or runtime.sleep_speed is not None)
-    positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype)
-    positions[:g] = sim.position[:g] if start is None else start
+    positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype, device=device)
+    positions[:g] = sim.position[:g] if start is None else start.to(device)
     props = None if sim.props is None else sim.props.to(dtype)
     counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0}
     first_bad = None
@@ -124,7 +128,7 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             if runtime is None:
                 nxt = simulator.step(graph, kinematic_next)
             else:
-                with runtime.autocast():
+                with runtime.autocast(device):
                     acceleration = simulator(graph).to(dtype)
                 nxt = torch.where(sim.kinematic.unsqueeze(-1), kinematic_next,
                                   simulator.integrate(window, acceleration))
@@ -132,10 +136,11 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
             first_bad = t
             break
         positions[t] = nxt
+    devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
-    return Rollout(positions.numpy(), g, first_bad, seconds, t_graph, timing)
+    return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, timing)
 
 
 def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, history: int) -> np.ndarray:

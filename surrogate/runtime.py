@@ -12,8 +12,8 @@ one's measured effect):
 * ``skip_kinematic_pairs`` (exact for a model trained this way, as every model here is): no edge
   joins two kinematic particles. Off, such edges are built: more work, and a graph the model never
   saw in training (the benchmark measures both). Pruning and sleeping rely on it;
-* ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network;
-  positions are integrated in float32);
+* ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network on
+  the model's device type, CPU or CUDA; positions are integrated in float32);
 * ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is
   below this speed (m per frame) and that has no awake particle within R sleeps: it keeps its
   position, gets no prediction, and has no edge to another sleeping or kinematic particle. It wakes
@@ -25,6 +25,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import torch
+
+from surrogate import devices
 
 PRECISIONS = ("float64", "float32", "bfloat16")
 
@@ -62,9 +64,10 @@ class Runtime:
     def network_dtype(self) -> torch.dtype:
         return torch.float64 if self.precision == "float64" else torch.float32
 
-    def autocast(self):
-        """Context for the network's forward pass (bfloat16 autocast on the CPU, or nothing)."""
-        return torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16")
+    def autocast(self, device: torch.device | str = "cpu"):
+        """Context for the network's forward pass on ``device`` (bfloat16 autocast of that device's type,
+        cpu or cuda, or nothing)."""
+        return devices.autocast(torch.device(device), self.precision)
 
 
 def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:

@@ -6,7 +6,7 @@ next frame ``p^{t+1}``; every sim of T frames yields T - K samples (``t = K-1 ..
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +79,14 @@ def load_sim(path: str | Path, stats: dict, property_names: list[str] | None = N
                types=torch.tensor(np.asarray(traj.species), dtype=torch.long),
                kinematic=torch.tensor(np.asarray(traj.kinematic, bool)),
                props=normalised_properties(traj, list(property_names or []), stats), traj=traj)
+
+
+def to_device(sim: Sim, device: torch.device) -> Sim:
+    """The sim with its tensors on ``device`` (the sim itself where they are there already)."""
+    if sim.position.device == device:
+        return sim
+    return replace(sim, position=sim.position.to(device), types=sim.types.to(device),
+                   kinematic=sim.kinematic.to(device), props=None if sim.props is None else sim.props.to(device))
 
 
 def sample_index(sims: list[Sim], history: int) -> list[tuple[int, int]]:

@@ -38,9 +38,10 @@ class Graph:
 def build_graph(window: torch.Tensor, types: torch.Tensor, kinematic: torch.Tensor, radius: float,
                 props: torch.Tensor | None = None, skip_kinematic_pairs: bool = True) -> Graph:
     """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2); no edge
-    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch)."""
-    edges = radius_graph(window[-1], radius, kinematic.cpu().numpy() if skip_kinematic_pairs else None)
-    return Graph(window, types, kinematic, edges, props)
+    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch). The edges
+    live on the window's device, wherever the neighbour search ran."""
+    edges = radius_graph(window[-1], radius, kinematic if skip_kinematic_pairs else None)
+    return Graph(window, types, kinematic, edges.to(window.device), props)
 
 
 def prune_isolated(graph: Graph) -> tuple[Graph, torch.Tensor]:
@@ -57,8 +58,8 @@ def prune_isolated(graph: Graph) -> tuple[Graph, torch.Tensor]:
     keep[linked[0]] = True
     keep[linked[1]] = True
     index = keep.nonzero().squeeze(1)
-    remap = torch.full((keep.numel(),), -1, dtype=torch.long)
-    remap[index] = torch.arange(index.numel())
+    remap = torch.full((keep.numel(),), -1, dtype=torch.long, device=edges.device)
+    remap[index] = torch.arange(index.numel(), device=edges.device)
     sub_edges = remap[edges]
     sub_edges = sub_edges[:, (sub_edges >= 0).all(dim=0)]
     props = None if graph.props is None else graph.props[index]

@@ -43,7 +43,7 @@ def long_rollout(simulator: LearnedSimulator, runtime: rt.Runtime, sim: Sim, len
     position = np.asarray(result.position, np.float64)
     end = position.shape[0] if result.first_nonfinite is None else result.first_nonfinite
     finite = position[:end, moving.numpy()]
-    lower, upper = simulator.lower.double().numpy(), simulator.upper.double().numpy()
+    lower, upper = simulator.lower.double().cpu().numpy(), simulator.upper.double().cpu().numpy()
     outside = ((finite < lower) | (finite > upper)).any(axis=-1)           # [T, N_moving]
     radius, kinematic = np.asarray(sim.traj.radius, float), sim.kinematic.numpy()
     overlaps = np.array([max_overlap_fraction(x, radius, kinematic) for x in position[k:end]])

@@ -19,6 +19,7 @@ import json
 import logging
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,7 @@ import torch
 from tqdm import tqdm
 
 from generators.atomic import atomic_path
-from surrogate import checkpoint
+from surrogate import checkpoint, devices, distributed
 from surrogate.errors import TrainingDiverged
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
@@ -73,9 +74,61 @@ def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) 
     return out
 
 
+@dataclass
+class _Sample:
+    """One training sample's inputs on the model's device."""
+
+    window: torch.Tensor            # [K, N, D] the noisy history
+    following: torch.Tensor         # [N, D] the position the target acceleration leads to
+    truth: torch.Tensor             # [m, N, D] the true frames of the m pushed steps (kinematic part used)
+    types: torch.Tensor
+    kinematic: torch.Tensor
+    props: torch.Tensor | None
+
+    def graph(self, window: torch.Tensor, radius: float):
+        return build_graph(window, self.types, self.kinematic, radius, self.props)
+
+
+def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
+           generator: torch.Generator, mirror: bool, pushforward: float, pushforward_steps: int,
+           keep: range) -> list[_Sample]:
+    """The random draws of a whole batch, and the inputs of the samples at positions ``keep``.
+
+    Every sample's flip, pushforward, step count and noise are drawn in the batch's order, kept or not, so a
+    process that computes a share of the batch gives each sample the draws one process gives it."""
+    k = simulator.history
+    n = len(batch)
+    flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
+    pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
+    # m is drawn only for multi-step pushforward, so one-step runs keep their random stream unchanged
+    steps = (torch.randint(1, pushforward_steps + 1, (n,), generator=generator) if pushforward_steps > 1
+             else torch.ones(n, dtype=torch.long))
+    device = simulator.lower.device
+    kept = []
+    for i, ((s, t), flip, push, m) in enumerate(zip(batch, flips.tolist(), pushed.tolist(), steps.tolist(),
+                                                     strict=True)):
+        sim = sims[s]
+        noise = random_walk_position_noise(k, sim.position.shape[1], sim.position.shape[2], noise_std, ~sim.kinematic,
+                                           generator)
+        if i not in keep:
+            continue
+        m = min(m, t - k + 1) if push else 0           # pushed steps need frames before the window
+        frames = sim.position[t - k + 1 - m:t + 2]
+        if flip:
+            frames = mirror_x(frames, simulator.lower.to(frames.device), simulator.upper.to(frames.device))
+        # the target keeps the true next position relative to the noisy last one: the model learns to
+        # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
+        following = frames[-1] + noise[-1] if m == 0 else frames[-1]
+        kept.append(_Sample((frames[:k] + noise).to(device), following.to(device), frames[k:k + m].to(device),
+                            sim.types.to(device), sim.kinematic.to(device),
+                            None if sim.props is None else sim.props.to(device)))
+    return kept
+
+
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
                generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0,
-               pushforward_steps: int = 1) -> torch.Tensor:
+               pushforward_steps: int = 1, *, world: distributed.World | None = None,
+               model: torch.nn.Module | None = None, precision: str = "float32") -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
     With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
@@ -85,47 +138,44 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     frame. m is drawn uniformly from 1 .. ``pushforward_steps`` (at most the frames there are before
     the window). The model so learns to correct the errors it makes itself in a rollout, at the cost
     of m extra forward passes per such sample.
+
+    With a multi-process ``world``, this process computes its share of the samples
+    (:func:`surrogate.distributed.share`) and returns their squared errors summed, divided by the
+    whole batch's count of moving particle components, times the number of processes: the processes'
+    mean of this loss (and of its gradient, what DDP averages) is the one-process loss of the batch.
+    A process with no sample in a short batch computes the first sample with weight 0, so that every
+    process takes part in the gradient's exchange. ``model`` computes the prediction that carries the
+    gradient (the DDP wrapper; default ``simulator``); ``precision`` = ``bfloat16`` runs the forward
+    passes under bfloat16 autocast (:func:`surrogate.devices.autocast`).
     """
-    k = simulator.history
-    n = len(batch)
-    flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
-    pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
-    # m is drawn only for multi-step pushforward, so one-step runs keep their random stream unchanged
-    steps = (torch.randint(1, pushforward_steps + 1, (n,), generator=generator) if pushforward_steps > 1
-             else torch.ones(n, dtype=torch.long))
-    windows, followings, sample_sims, truths = [], [], [], []
-    for (s, t), flip, push, m in zip(batch, flips.tolist(), pushed.tolist(), steps.tolist(), strict=True):
-        sim = sims[s]
-        m = min(m, t - k + 1) if push else 0           # pushed steps need frames before the window
-        frames = sim.position[t - k + 1 - m:t + 2]
-        if flip:
-            frames = mirror_x(frames, simulator.lower, simulator.upper)
-        window = frames[:k]
-        noise = random_walk_position_noise(k, window.shape[1], window.shape[2], noise_std, ~sim.kinematic, generator)
-        windows.append(window + noise)
-        # the target keeps the true next position relative to the noisy last one: the model learns to
-        # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
-        followings.append(frames[-1] + noise[-1] if m == 0 else frames[-1])
-        sample_sims.append(sim)
-        truths.append(frames[k:k + m])                 # true frames of the pushed steps (kinematic part used)
-    for j in range(max(len(f) for f in truths)):
-        which = [i for i, f in enumerate(truths) if len(f) > j]
-        earlier = stack_graphs([build_graph(windows[i], sample_sims[i].types, sample_sims[i].kinematic,
-                                            simulator.radius, sample_sims[i].props) for i in which])
-        with torch.no_grad():
-            predicted = simulator.step(earlier, torch.cat([truths[i][j] for i in which]))
-        sizes = [windows[i].shape[1] for i in which]
-        for i, frame in zip(which, predicted.split(sizes), strict=True):
-            windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
-    graphs, targets = [], []
-    for window, following, sim in zip(windows, followings, sample_sims, strict=True):
-        graphs.append(build_graph(window, sim.types, sim.kinematic, simulator.radius, sim.props))
-        targets.append(simulator.target(window, following))
-    # isolated wall particles cannot change a prediction: left out (exact), and only moving particles decoded
-    graph, index = prune_isolated(stack_graphs(graphs))
-    moving = (~graph.kinematic).nonzero().squeeze(1)
-    prediction = simulator(graph, decode=moving)
-    return ((prediction - torch.cat(targets)[index[moving]]) ** 2).mean()
+    world = world or distributed.World()
+    model = model or simulator
+    keep = distributed.share(len(batch), world)
+    weight = 1.0
+    if not keep:
+        keep, weight = range(1), 0.0
+    drawn = _draws(simulator, sims, batch, noise_std, generator, mirror, pushforward, pushforward_steps, keep)
+    windows = [sample.window for sample in drawn]
+    with devices.autocast(simulator.lower.device, precision):
+        for j in range(max(len(sample.truth) for sample in drawn)):
+            which = [i for i, sample in enumerate(drawn) if len(sample.truth) > j]
+            earlier = stack_graphs([drawn[i].graph(windows[i], simulator.radius) for i in which])
+            with torch.no_grad():
+                predicted = simulator.step(earlier, torch.cat([drawn[i].truth[j] for i in which]))
+            sizes = [windows[i].shape[1] for i in which]
+            for i, frame in zip(which, predicted.split(sizes), strict=True):
+                windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
+        graphs = [sample.graph(window, simulator.radius) for window, sample in zip(windows, drawn, strict=True)]
+        targets = [simulator.target(window, sample.following) for window, sample in zip(windows, drawn, strict=True)]
+        # isolated wall particles cannot change a prediction: left out (exact), and only moving particles decoded
+        graph, index = prune_isolated(stack_graphs(graphs))
+        moving = (~graph.kinematic).nonzero().squeeze(1)
+        prediction = model(graph, decode=moving)
+    squared = (prediction.float() - torch.cat(targets)[index[moving]]) ** 2
+    if not world.distributed:
+        return squared.mean()
+    components = sum(int((~sims[s].kinematic).sum()) for s, _ in batch) * squared.shape[-1]
+    return squared.sum() * (weight * world.size / components)
 
 
 def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
@@ -150,16 +200,30 @@ def _settings(model_cfg: dict, train_cfg: dict, stats: dict, train_ids: list[str
 
 
 def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, out_dir: Path,
-          threads: int = 1, fresh: bool = False, max_steps: int | None = None, progress: bool = True) -> dict:
+          threads: int = 1, fresh: bool = False, max_steps: int | None = None, progress: bool = True,
+          device: str | torch.device = "auto") -> dict:
     """Train (or continue training) and write best.pt, last.pt and history.csv into ``out_dir``.
 
     ``max_steps`` stops after that many optimiser steps in this call, leaving an unfinished
-    ``last.pt`` (used to test resuming; a real interruption behaves the same).
+    ``last.pt`` (used to test resuming; a real interruption behaves the same). ``device`` is where the
+    model and the batches live (:mod:`surrogate.devices`); a run may continue on another device than
+    the one it started on. Under ``torchrun`` each process trains its share of every batch
+    (:mod:`surrogate.distributed`) and the ``threads`` of a node are shared among its processes.
     """
-    torch.set_num_threads(max(1, int(threads)))
-    out_dir = Path(out_dir)
+    world = distributed.World.from_env()
+    where = devices.resolve(device, world.local_rank if world.distributed else None)
+    with distributed.session(world, where):
+        return _train(Path(stats_path), Path(splits_csv), model_cfg, train_cfg, Path(out_dir), threads, fresh,
+                      max_steps, progress, world, where)
+
+
+def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, out_dir: Path, threads: int,
+           fresh: bool, max_steps: int | None, progress: bool, world: distributed.World,
+           device: torch.device) -> dict:
+    torch.set_num_threads(max(1, int(threads) // world.local_size))
+    progress = progress and world.main
     out_dir.mkdir(parents=True, exist_ok=True)
-    stats = json.loads(Path(stats_path).read_text())
+    stats = json.loads(stats_path.read_text())
     splits = pd.read_csv(splits_csv)
     props = list(model_cfg.get("properties") or [])
     train_paths = list(splits.loc[splits["split"] == "train", "path"])
@@ -172,16 +236,20 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
         raise ValueError(f"{splits_csv}: the valid split is empty: the best checkpoint is chosen by validation "
                          f"rollout error, so at least one valid sim is needed")
     train_sims = [load_sim(p, stats, props) for p in tqdm(train_paths, desc="load train", disable=not progress)]
-    valid_sims = [load_sim(p, stats, props) for p in valid_paths]
+    valid_sims = [load_sim(p, stats, props) for p in valid_paths] if world.main else []   # rank 0 validates
     k = int(model_cfg["history"])
     index = sample_index(train_sims, k)
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
     seed = int(train_cfg["seed"])
+    precision = str(train_cfg["precision"])
     settings = _settings(model_cfg, train_cfg, stats, [s.id for s in train_sims])
+    if world.distributed and batch_size < world.size:
+        log.warning("batch_size %d < %d processes: %d of them compute a sample with weight 0 at every step",
+                    batch_size, world.size, world.size - batch_size)
 
     torch.manual_seed(seed)
-    simulator = LearnedSimulator(stats, model_cfg)
+    simulator = LearnedSimulator(stats, model_cfg).to(device)
     optimiser = torch.optim.Adam(simulator.parameters(), lr=float(train_cfg["lr"]))
     state = {"epoch": 0, "batch": 0, "step": 0, "history": [], "best_mse": math.inf, "best_epoch": -1,
              "best_step": 0, "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0,
@@ -190,7 +258,7 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
     best_weights = None
     decay = train_cfg.get("ema_decay")
     average = {k: v.detach().clone() for k, v in simulator.state_dict().items()} if decay is not None else None
-    validator = LearnedSimulator(stats, model_cfg) if decay is not None else simulator
+    validator = LearnedSimulator(stats, model_cfg).to(device) if decay is not None else simulator
     last = out_dir / "last.pt"
     if last.exists() and not fresh:
         try:
@@ -209,10 +277,11 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             optimiser.load_state_dict(saved["optimiser"])
             best_weights = saved.get("best_model")
             if average is not None:
-                average = saved["average_model"]
+                average = {k: v.to(device) for k, v in saved["average_model"].items()}
             state = saved["json"]["state"]
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
+    model = distributed.wrap(simulator, world, device)     # after resuming: DDP starts from rank 0's weights
 
     def meta() -> dict:
         return {"model": model_cfg, "train": train_cfg, "stats": stats, "settings": settings, "state": state}
@@ -250,11 +319,13 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
             loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
                               _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
                               pushforward=float(train_cfg["pushforward"]),
-                              pushforward_steps=int(train_cfg["pushforward_steps"]))
-            if not torch.isfinite(loss):
+                              pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
+                              precision=precision)
+            value = distributed.mean(loss, world)          # the batch's loss, the same on every process
+            if not math.isfinite(value):
                 samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
                 raise TrainingDiverged(
-                    f"non-finite training loss ({loss.item()}) at step {state['step'] + 1} (epoch {epoch + 1}, "
+                    f"non-finite training loss ({value}) at step {state['step'] + 1} (epoch {epoch + 1}, "
                     f"batch {b + 1}) on samples: {samples}; the last good state is in {last}")
             for group in optimiser.param_groups:
                 group["lr"] = learning_rate(train_cfg, state["step"], state["total_steps"])
@@ -265,50 +336,65 @@ def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, 
                 ema_update(average, simulator, float(decay), state["step"])
             state["step"] += 1
             state["batch"] = b + 1
-            state["loss_sum"] += loss.item()
+            state["loss_sum"] += value
             state["loss_count"] += 1
             steps_this_call += 1
             bar.set_postfix(loss=f"{state['loss_sum'] / state['loss_count']:.4g}", refresh=False)
             if max_steps is not None and steps_this_call >= max_steps:
                 state["seconds"] += time.perf_counter() - clock
-                save_last()
-                save_outputs()
+                if world.main:
+                    save_last()
+                    save_outputs()
+                distributed.barrier(world)
                 log.info("stopped after %d steps as asked (step %d); rerun to continue", max_steps, state["step"])
                 return state
             if every and state["step"] % every == 0:
                 state["seconds"] += time.perf_counter() - clock
                 clock = time.perf_counter()
-                save_last()
+                if world.main:
+                    save_last()
         bar.close()
-        train_loss = state["loss_sum"] / max(state["loss_count"], 1)
-        if average is not None:
-            validator.load_state_dict(average)
-        valid = validation_mse(validator, valid_sims)
-        # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
-        improved = valid < state["best_mse"] or state["best_epoch"] == -1
-        if improved:
-            state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
-            state["best_step"] = state["step"]
-            best_weights = {k: v.detach().clone() for k, v in validator.state_dict().items()}
-        else:
-            state["bad_epochs"] += 1
-        state["seconds"] += time.perf_counter() - clock
+        if world.main:
+            best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
+                                      optimiser.param_groups[0]["lr"], clock) or best_weights
+            save_outputs()      # outputs first: a kill in between never leaves a finished state without them
+            save_last()
+        state = distributed.from_main(state, world)    # the others wait here for rank 0's validation
         clock = time.perf_counter()
-        state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2),
-                                 optimiser.param_groups[0]["lr"]])
-        log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
-                 " (best)" if improved else "")
-        state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)
-        if state["bad_epochs"] >= patience:
-            log.info("early stopping: no improvement for %d epochs", patience)
-            state["finished"] = True
-        if state["epoch"] >= epochs:
-            state["finished"] = True
-        save_outputs()          # outputs first: a kill in between never leaves a finished state without them
-        save_last()
-    if best_weights is None:
+    if state["best_epoch"] == -1:
         raise ValueError(f"no epoch was completed (epochs = {epochs}): no best checkpoint")
     if not math.isfinite(state["best_mse"]):
         log.warning("every validation rollout blew up: best.pt holds epoch %d only because it came first",
                     state["best_epoch"])
     return state
+
+
+def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, valid_sims: list[Sim], patience: int,
+               epochs: int, lr: float, clock: float) -> dict[str, torch.Tensor] | None:
+    """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` and close
+    it; the weights to keep as the best, on the CPU, where they improved, else None."""
+    epoch = state["epoch"]
+    train_loss = state["loss_sum"] / max(state["loss_count"], 1)
+    if average is not None:
+        validator.load_state_dict(average)
+    valid = validation_mse(validator, valid_sims)
+    # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
+    improved = valid < state["best_mse"] or state["best_epoch"] == -1
+    best = None
+    if improved:
+        state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
+        state["best_step"] = state["step"]
+        best = {k: v.detach().to("cpu", copy=True) for k, v in validator.state_dict().items()}
+    else:
+        state["bad_epochs"] += 1
+    state["seconds"] += time.perf_counter() - clock
+    state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr])
+    log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
+             " (best)" if improved else "")
+    state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)
+    if state["bad_epochs"] >= patience:
+        log.info("early stopping: no improvement for %d epochs", patience)
+        state["finished"] = True
+    if state["epoch"] >= epochs:
+        state["finished"] = True
+    return best

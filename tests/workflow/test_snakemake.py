@@ -151,6 +151,13 @@ def test_unchanged_rerun_does_nothing(workdir):
     assert planned(snakemake(workdir, TARGET, "-n")) == {}
 
 
+def test_changed_device_or_launcher_reruns_nothing(workdir):
+    """Machine settings (docs/scaling.md): where and in how many processes it computes, not what."""
+    machine = ("device=cpu", "launch={launcher: torchrun, processes: 2}")
+    assert planned(snakemake(workdir, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-n",
+                             config=(SMALL, *machine))) == {}
+
+
 def test_changed_weak_friction_reruns_sims_but_not_the_packing(workdir):
     jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", weak_friction: 0.1}",)))
     assert jobs.get("simulate") == 3 and jobs.get("convert") == 3 and "prepare" not in jobs

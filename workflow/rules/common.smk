@@ -10,6 +10,7 @@ from generators import config as gconfig
 from generators import locks as glocks
 from generators import report as greport
 from generators import engine as gengine
+from generators import launch as glaunch
 from generators import scales as gscales
 from generators import scenes as gscenes
 from generators import sweep as gsweep
@@ -214,6 +215,30 @@ def train_threads(wildcards) -> int:
 
 def progress_arg(wildcards) -> list[str]:
     return [] if is_scene(wildcards) else ["--no-progress"]
+
+
+# ---- where the surrogate computes (config keys device and launch; docs/scaling.md) ------------------
+# Machine settings: the arguments are recorded by Snakemake as one constant, so changing them reruns no job.
+
+
+def device_arg(wildcards) -> list[str]:
+    """--device with the config's device, for every surrogate job that computes."""
+    return glaunch.device_args(CFG)
+
+
+def train_command(wildcards) -> list[str]:
+    """graphdem, or torchrun starting launch.processes training processes on the node."""
+    return glaunch.train_command(CFG)
+
+
+def job_gpus(wildcards) -> int:
+    """The gpus resource of a surrogate job: 1 with device cuda or cuda:N, else 0."""
+    return glaunch.gpus(CFG)
+
+
+def train_gpus(wildcards) -> int:
+    """The gpus resource of the train job: one per training process with device cuda or cuda:N, else 0."""
+    return glaunch.train_gpus(CFG)
 
 
 def evaluated_rollouts(wildcards) -> list[str]:

@@ -25,7 +25,10 @@ rule evaluate:
         evaluation=evaluation_args,
         runtime=runtime_json,
         body=body_displacement_arg,
+        device=device_arg,
     threads: 1
+    resources:
+        gpus=job_gpus,
     log:
         "results/{name}/logs/evaluate.log",
     benchmark:
@@ -34,4 +37,4 @@ rule evaluate:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} "
         "--per-step {output.per_step:q} "
-        "--plots results/{wildcards.name}/plots {params.body:q} --no-progress > {log} 2>&1"
+        "--plots results/{wildcards.name}/plots {params.body:q} {params.device:q} --no-progress > {log} 2>&1"

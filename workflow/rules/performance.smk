@@ -35,7 +35,10 @@ rule performance_surrogate:
         repeats=stage_setting("performance", "repeats"),
         threads=stage_setting("performance", "threads"),
         body=body_displacement_arg,
+        device=device_arg,
     threads: 64
+    resources:
+        gpus=job_gpus,
     log:
         "results/{scene}/logs/performance/surrogate_{contender}.log",
     benchmark:
@@ -43,7 +46,8 @@ rule performance_surrogate:
     shell:
         "graphdem performance-surrogate --name {wildcards.contender} --variant {params.variant:q} "
         "--checkpoint {input.checkpoint:q} --data {input.truth:q} --runtime-json {params.runtime:q} "
-        "--threads {params.threads:q} --repeats {params.repeats:q} {params.body:q} --out {output:q} > {log} 2>&1"
+        "--threads {params.threads:q} --repeats {params.repeats:q} {params.body:q} {params.device:q} "
+        "--out {output:q} > {log} 2>&1"
 
 
 rule performance:

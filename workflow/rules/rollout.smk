@@ -7,11 +7,15 @@ rule rollout:
         "results/{scene}/rollouts/{sim}.h5",
     params:
         runtime=runtime_json,
+        device=device_arg,
     threads: 1
+    resources:
+        gpus=job_gpus,
     log:
         "results/{scene}/logs/rollout/{sim}.log",
     benchmark:
         "results/{scene}/benchmarks/rollout/{sim}.tsv"
     shell:
         "graphdem rollout --checkpoint {input.checkpoint:q} --data {input.sim:q} "
-        "--out-dir results/{wildcards.scene}/rollouts --threads {threads} --runtime-json {params.runtime:q} > {log} 2>&1"
+        "--out-dir results/{wildcards.scene}/rollouts --threads {threads} --runtime-json {params.runtime:q} "
+        "{params.device:q} > {log} 2>&1"

@@ -27,14 +27,17 @@ rule stability_surrogate:
     params:
         runtime=runtime_json,
         args=surrogate_stress_args,
+        device=device_arg,
     threads: 1
+    resources:
+        gpus=job_gpus,
     log:
         "results/{scene}/logs/stability_surrogate.log",
     benchmark:
         "results/{scene}/benchmarks/stability_surrogate.tsv"
     shell:
         "graphdem stability-surrogate --checkpoint {input.checkpoint:q} --data {input.sims:q} "
-        "--runtime-json {params.runtime:q} {params.args:q} "
+        "--runtime-json {params.runtime:q} {params.args:q} {params.device:q} "
         "--out {output:q} > {log} 2>&1"
 
 
