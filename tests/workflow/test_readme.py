@@ -78,6 +78,12 @@ PROMISES = {
         {"builds": ({"shear"}, "evaluate"),
          "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/slide/vtk": {"builds": ({"slide"}, "export")},
+    "--resources gpus=1 results/slide/metrics.csv --config device=cuda": SLIDE,
+    "--resources gpus=4 results/slide/metrics.csv --config device=cuda 'launch={launcher: torchrun, processes: 4}'":
+        SLIDE,
+    "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
+        {"tested_by": "tests/workflow/test_slurm.py"},
+    "results/meteorite/metrics.csv --config 'meteorite={ranks: 2}'": {"builds": ({"meteorite"}, "evaluate")},
     "results/slide/performance.csv": {"builds": ({"slide"}, "performance")},
     "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
@@ -138,12 +144,17 @@ def test_every_documented_snakemake_command_has_a_promise():
     assert PROMISES.keys() - commands == set(), "promises of commands no longer documented"
     assert "results/slide/metrics.csv --forcerun train" in commands      # target before --forcerun, which
     assert not any(c.startswith("--forcerun") for c in commands)          # would swallow it
+    for key, promise in PROMISES.items():                                  # tested elsewhere: that test runs it
+        if "tested_by" in promise:
+            assert all(arg in (ROOT / promise["tested_by"]).read_text() for arg in ("scale=paper", "slurm")), key
 
 
 def test_each_documented_command_builds_what_its_text_says(tmp_path):
     solidgn = fake_solidgn(tmp_path / "solidgn")
 
     def check(key: str) -> str | None:
+        if "tested_by" in PROMISES[key]:               # a dry run of its own, with what it needs (fake SLURM)
+            return None
         workdir = tmp_path / re.sub(r"\W+", "_", key)[:80]
         workdir.mkdir()
         jobs = dry_run(shlex.split(key), workdir, solidgn)
