@@ -78,16 +78,21 @@ def cmd_sweep(args) -> None:
 
 def cmd_prepare(args) -> None:
     from generators import engine
-    rec = engine.prepare(scenes.get(args.scene), args.engine, args.params, Path(args.out))
-    print(f"{args.out}: settled in {rec.run.engine} ({rec.settle_steps} steps, {rec.run.wall_time:.1f} s), "
+    rec = engine.prepare(scenes.get(args.scene), args.engine, args.params, Path(args.out), ranks=args.ranks)
+    print(f"{args.out}: settled in {rec.run.engine} ({rec.settle_steps} steps, {rec.run.wall_time:.1f} s"
+          f"{_on_ranks(rec.run.ranks)}), "
           f"{rec.n_moving} moving and {rec.n_kinematic} kinematic particles")
 
 
 def cmd_simulate(args) -> None:
     from generators import engine
-    rec = engine.simulate(scenes.get(args.scene), args.sim, Path(args.packing), Path(args.out))
+    rec = engine.simulate(scenes.get(args.scene), args.sim, Path(args.packing), Path(args.out), ranks=args.ranks)
     print(f"{args.out}: {rec.run.engine} {rec.run.version}, dt = {rec.dt:.4g} s ({rec.dt / rec.dt_limit:.3g} x the "
-          f"stable limit), {rec.steps_per_frame} steps per frame, {rec.run.wall_time:.1f} s")
+          f"stable limit), {rec.steps_per_frame} steps per frame, {rec.run.wall_time:.1f} s{_on_ranks(rec.run.ranks)}")
+
+
+def _on_ranks(ranks: int) -> str:
+    return f" on {ranks} MPI ranks" if ranks > 1 else ""
 
 
 def cmd_convert(args) -> None:
@@ -192,6 +197,12 @@ def cmd_physics(args) -> None:
     print(table.to_string(index=False))
 
 
+def _ranks_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ranks", type=positive_int, default=1, metavar="N",
+                   help="MPI ranks LAMMPS runs on (mpirun -np N on this host; default 1: no mpirun); YADE runs "
+                        "take 1 only")
+
+
 def add_commands(sub) -> None:
     """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
     names = scenes.names()
@@ -212,6 +223,7 @@ def add_commands(sub) -> None:
     p.add_argument("--engine", choices=("lammps", "yade"), required=True, help="the engine that settles it")
     p.add_argument("--params", type=json_arg, required=True, help="packing parameters (JSON)")
     p.add_argument("--out", type=Path, required=True, help="packing folder to write")
+    _ranks_option(p)
     p.set_defaults(func=cmd_prepare)
 
     p = sub.add_parser("simulate", help="run one simulation of the sweep with the DEM engine")
@@ -219,6 +231,7 @@ def add_commands(sub) -> None:
     p.add_argument("--sim", type=json_arg, required=True, help="the sim's sweep row (JSON)")
     p.add_argument("--packing", type=Path, required=True, help="settled packing folder")
     p.add_argument("--out", type=Path, required=True, help="raw output folder to write")
+    _ranks_option(p)
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("convert", help="convert a raw engine output folder to H5MD")
@@ -341,5 +354,5 @@ def errors() -> tuple[type[Exception], ...]:
     from generators.lammps import runner as lammps_runner
     from generators.yade import runner as yade_runner
     return (gconfig.ConfigError, h5md.H5MDError, export.ExportError, blowup.BlowUp, contact.UnstableTimeStep,
-            dem.UnsupportedSetup, record.RecordError, lammps_runner.LammpsError, lammps_io.LammpsOutputError,
-            yade_runner.YadeError, pickle.UnpicklingError, FileNotFoundError, ValueError)
+            dem.UnsupportedSetup, record.RecordError, lammps_runner.LammpsError, lammps_runner.MpiMismatch,
+            lammps_io.LammpsOutputError, yade_runner.YadeError, pickle.UnpicklingError, FileNotFoundError, ValueError)

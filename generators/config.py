@@ -188,6 +188,7 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.split' = {cfg['split']} must sum to 1")
         _check_size(name, scene, cfg, config["limits"]["particles"])
         _check_contenders(name, cfg)
+        _check_ranks(name, cfg["ranks"])
         if cfg["engine"] not in scene.engines:
             raise ConfigError(f"config key '{name}.engine' = {cfg['engine']!r}: the {name} scene runs in "
                               f"{', '.join(scene.engines)} for now")
@@ -209,6 +210,17 @@ def _check_size(name: str, scene, cfg: dict, limit: int) -> None:
             f"config section '{name}': radius {cfg['radius']} gives about {n:,} particles per sim (estimated from the "
             f"geometry and radii; {mib:,.0f} MiB of positions and velocities per recorded sim), above "
             f"'limits.particles' = {limit:,}; raise that key to run it anyway, or use larger radii")
+
+
+def _check_ranks(name: str, ranks: int) -> None:
+    """More than one MPI rank needs OpenMPI's launcher (refused here, before anything runs)."""
+    if ranks == 1:
+        return
+    from generators.lammps import runner
+    if runner.mpirun_path() is None:
+        raise ConfigError(f"config key '{name}.ranks' = {ranks} runs LAMMPS under `mpirun -np {ranks}`, and mpirun is "
+                          f"not on PATH (Debian's openmpi-bin, installed with lammps; or set {runner.MPIRUN_ENV} to "
+                          f"it); allowed without it: 1")
 
 
 def _check_contenders(name: str, cfg: dict) -> None:

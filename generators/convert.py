@@ -25,8 +25,9 @@ def trajectory(raw_dir: Path) -> h5md.Trajectory:
     parameters = dict(rec.params)
     parameters.update(
         scene=scene.name, units="SI (m, s, kg, Pa)", engine=rec.run.engine, engine_version=rec.run.version,
-        engine_command=rec.run.command, engine_wall_time=rec.run.wall_time, dem_time_step=rec.dt,
-        dem_time_step_limit=rec.dt_limit, steps_per_frame=rec.steps_per_frame, frame_interval=rec.frame_interval,
+        engine_command=rec.run.command, engine_wall_time=rec.run.wall_time, engine_ranks=rec.run.ranks,
+        dem_time_step=rec.dt, dem_time_step_limit=rec.dt_limit, steps_per_frame=rec.steps_per_frame,
+        frame_interval=rec.frame_interval,
         species_names={str(k): v for k, v in scene.species.items()}, contact_model=rec.contact_model,
         **rec.parameters)
     names = tuple(rec.properties)

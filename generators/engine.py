@@ -45,13 +45,14 @@ def read_packing(packing_dir: Path) -> dem.Particles:
                          {g: table[g].to_numpy(bool) for g in groups})
 
 
-def prepare(scene: Scene, engine: str, params: dict, out_dir: Path) -> record.PackingRecord:
-    """Settle the loose packing of ``params`` in ``engine``; write packing.csv and run.json to ``out_dir``."""
+def prepare(scene: Scene, engine: str, params: dict, out_dir: Path, ranks: int = 1) -> record.PackingRecord:
+    """Settle the loose packing of ``params`` in ``engine`` (LAMMPS: on ``ranks`` MPI ranks); write packing.csv
+    and run.json to ``out_dir``."""
     out_dir = Path(out_dir)
     setup = scene.settle_setup(params)
     with atomic_path(out_dir) as tmp:
         tmp.mkdir()
-        settled, run = driver(engine).settle(setup, tmp)
+        settled, run = driver(engine).settle(setup, tmp, ranks=ranks)
         where = f"packing {out_dir.name}"
         packing = scene.settled(params, settled, where)
         kinematic = np.isin(packing.species, setup.kinematic_species)
@@ -75,10 +76,11 @@ def perturbed(packing: dem.Particles, kinematic_species: tuple[int, ...], scale:
     return dem.Particles(x, packing.radius, packing.species, packing.groups)
 
 
-def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path) -> record.SimRecord:
-    """Run sweep row ``row`` from its settled packing in the row's engine; raw output, the engine's own
-    input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the sim, frame and cause.
-    A row with ``perturbation`` > 0 starts from the packing perturbed by that many radii (:func:`perturbed`)."""
+def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: int = 1) -> record.SimRecord:
+    """Run sweep row ``row`` from its settled packing in the row's engine (LAMMPS: on ``ranks`` MPI ranks); raw
+    output, the engine's own input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the
+    sim, frame and cause. A row with ``perturbation`` > 0 starts from the packing perturbed by that many radii
+    (:func:`perturbed`)."""
     out_dir = Path(out_dir)
     packing = read_packing(packing_dir)
     if row.get("perturbation"):
@@ -88,7 +90,7 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path) -> recor
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:
         tmp.mkdir()
-        frames, run = runner.record(setup, tmp)
+        frames, run = runner.record(setup, tmp, ranks=ranks)
         blowup.check_trajectory(setup.name, frames.position, frames.radius, setup.kinematic,
                                 np.asarray(setup.lower), np.asarray(setup.upper), setup.max_overlap)
         if setup.max_energy_gain is not None:

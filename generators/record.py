@@ -32,6 +32,7 @@ class EngineRun:
     max_rss_mb: float = float("nan")     # peak resident memory of the engine process
     window_seconds: float | None = None  # s, the engine's own timing of the recorded window
     steps: int = 0                       # DEM steps run
+    ranks: int = 1                       # MPI ranks the engine ran on (LAMMPS under mpirun; 1: one process)
     notes: dict[str, Any] = field(default_factory=dict)   # engine-specific facts (e.g. YADE's closed servers)
 
 

@@ -5,7 +5,8 @@ the deck of a Record schedule and returns the recorded frames; ``read_raw`` read
 folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``) and 3D spheres,
 kinematic species (fixed, or moved at constant velocity by a Motion: ``fix move linear``), planar
 walls, per-species contact overrides, initial velocities, gravity tilted for an incline, viscous
-settling damping.
+settling damping. Each run is one ``lmp`` process, or ``ranks`` MPI ranks of the same deck under
+``mpirun`` (runner.py).
 """
 
 from __future__ import annotations
@@ -41,11 +42,12 @@ def _blowup(setup: dem.Setup, exc: runner.LammpsError, start: int, every: int) -
     return blowup.BlowUp(setup.name, max(0, exc.step - start) // every, cause)
 
 
-def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
-    """Settle ``setup`` (a Settle schedule) in ``workdir``; the particles at rest, in setup order."""
+def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particles, EngineRun]:
+    """Settle ``setup`` (a Settle schedule) in ``workdir`` on ``ranks`` MPI ranks; the particles at rest, in
+    setup order."""
     workdir = Path(workdir)
     deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name} loose packing")
-    run = runner.run(deck.settle_deck(setup), workdir)
+    run = runner.run(deck.settle_deck(setup), workdir, ranks=ranks)
     (_, table), = io.read_dump(workdir / deck.PACKING)
     (workdir / deck.PACKING).unlink()
     x = table[list(deck.AXES[: setup.dim])].to_numpy(float)
@@ -54,13 +56,14 @@ def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
         _engine_run(run, workdir / "log.lammps")
 
 
-def record(setup: dem.Setup, workdir: Path) -> tuple[dem.Frames, EngineRun]:
-    """Run ``setup`` (a Record schedule) in ``workdir``; blow-ups reported by LAMMPS raise BlowUp."""
+def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames, EngineRun]:
+    """Run ``setup`` (a Record schedule) in ``workdir`` on ``ranks`` MPI ranks; blow-ups reported by LAMMPS
+    raise BlowUp."""
     workdir = Path(workdir)
     schedule = setup.schedule
     deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name}")
     try:
-        run = runner.run(deck.record_deck(setup), workdir)
+        run = runner.run(deck.record_deck(setup), workdir, ranks=ranks)
     except runner.LammpsError as exc:
         raise _blowup(setup, exc, schedule.start, schedule.every) from exc
     raw = read_raw(workdir, setup.dt)

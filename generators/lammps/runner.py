@@ -1,8 +1,16 @@
-"""Run the LAMMPS executable on an input deck (generators/lammps/deck.py), single-threaded."""
+"""Run the LAMMPS executable on an input deck (generators/lammps/deck.py): one process, or ``ranks`` MPI
+ranks on this host under OpenMPI's ``mpirun`` (docs/architecture.md, "LAMMPS under MPI").
+
+Under MPI every rank owns a slab of the box (LAMMPS' domain decomposition) and holds copies of the
+particles within the pair cutoff of its slab (ghosts; ``comm_modify vel yes`` gives them velocities, as
+the granular contact needs): the same deck, written for one rank, runs on any number of them. Forces
+are summed in another order there, so a run on N ranks is not bitwise equal to a serial one.
+"""
 
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import shutil
 import tempfile
@@ -13,6 +21,20 @@ from generators.process import run_measured
 from generators.record import EngineRun
 
 EXECUTABLE_ENV = "GRAPHDEM_LMP"
+MPIRUN_ENV = "GRAPHDEM_MPIRUN"
+
+# OpenMPI on this host only: the ranks exchange data through shared memory (btl self,vader; the ob1
+# messaging layer, so no UCX or fabric library probes a network), the runtime talks to its ranks over the
+# loopback interface, and every rank gets a slot on localhost (the caller, e.g. Snakemake's `threads:`,
+# decides how many cores a job may use). Ranks are not pinned to cores: two runs side by side would
+# otherwise be pinned to the same ones. A rank waiting for another yields its core (mpi_yield_when_idle)
+# rather than spinning on it: on a machine with other work, the spinning rank took the core the rank it
+# waited for needed (a ci meteorite run on 2 ranks beside other jobs: 2-5 s of loop time spinning, 0.2-0.7 s
+# yielding). mpirun's own runtime still listens on a TCP port of every interface while it runs (OpenMPI 4.1
+# binds its out-of-band listener to all addresses whatever oob_tcp_if_include says, and uses the loopback
+# one); nothing connects to it from elsewhere, and no rank runs on another host.
+MPI_OPTIONS = ("--bind-to", "none", "--mca", "mpi_yield_when_idle", "1", "--mca", "pml", "ob1",
+               "--mca", "btl", "self,vader", "--mca", "oob_tcp_if_include", "lo", "--mca", "btl_tcp_if_include", "lo")
 
 
 class LammpsError(RuntimeError):
@@ -22,6 +44,13 @@ class LammpsError(RuntimeError):
         self.step = step
         super().__init__(message)
 
+
+class MpiUnavailable(FileNotFoundError):
+    """More than one rank was asked for and ``mpirun`` is not on PATH."""
+
+
+class MpiMismatch(RuntimeError):
+    """LAMMPS ran on another number of ranks than asked for (an ``lmp`` built without this MPI)."""
 
 
 def executable() -> str:
@@ -34,12 +63,46 @@ def executable() -> str:
     return path
 
 
-def run(text: str, workdir: Path, log_name: str = "log.lammps") -> EngineRun:
-    """Write ``text`` into ``workdir`` as in.lammps and run it there, single-threaded; the run's command,
-    version, wall time and peak memory (the driver adds the window timing and step count)."""
+def mpirun_path() -> str | None:
+    """OpenMPI's launcher (``mpirun``, or ``$GRAPHDEM_MPIRUN``), None where there is none."""
+    return shutil.which(os.environ.get(MPIRUN_ENV, "mpirun"))
+
+
+def mpirun(ranks: int) -> str:
+    path = mpirun_path()
+    if path is None:
+        raise MpiUnavailable(
+            f"LAMMPS on ranks = {ranks} MPI ranks needs `mpirun` on PATH (Debian's openmpi-bin, which the "
+            f"`lammps` package installs) or {MPIRUN_ENV} set to it; allowed without it: ranks = 1")
+    return path
+
+
+def command(ranks: int = 1) -> list[str]:
+    """The command line of a run on ``ranks`` ranks: ``lmp`` alone for one (no MPI launcher), else
+    ``mpirun -np N`` on this host (MPI_OPTIONS; ``--allow-run-as-root`` where graphdem runs as root, as
+    in a container: OpenMPI refuses root otherwise)."""
+    if not isinstance(ranks, int) or ranks < 1:
+        raise ValueError(f"ranks = {ranks!r}: a positive number of MPI ranks (1: no mpirun)")
+    lmp = [executable(), "-in", "in.lammps"]
+    if ranks == 1:
+        return lmp
+    root = ["--allow-run-as-root"] if os.geteuid() == 0 else []
+    return [mpirun(ranks), *root, "-np", str(ranks), "--host", f"localhost:{ranks}", *MPI_OPTIONS, *lmp]
+
+
+def ranks_of(log: Path) -> int | None:
+    """The number of MPI ranks of the last run in a LAMMPS log ("Loop time of ... on N procs ...")."""
+    found = re.findall(r"^Loop time of \S+ on (\d+) procs", Path(log).read_text(), re.M) if Path(log).is_file() else []
+    return int(found[-1]) if found else None
+
+
+def run(text: str, workdir: Path, log_name: str = "log.lammps", ranks: int = 1) -> EngineRun:
+    """Write ``text`` into ``workdir`` as in.lammps and run it there on ``ranks`` MPI ranks (one thread
+    each); the run's command, version, rank count, wall time and peak memory (of the largest process: one
+    rank's, under MPI). The driver adds the window timing and step count."""
     workdir = Path(workdir)
+    cmd = [*command(ranks), "-log", log_name, "-screen", "none", "-nocite"]
     (workdir / "in.lammps").write_text(text)
-    cmd = [executable(), "-in", "in.lammps", "-log", log_name, "-screen", "none", "-nocite"]
     env = dict(os.environ, OMP_NUM_THREADS="1")
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         code, wall, rss = run_measured(cmd, workdir, env, out, err)
@@ -50,5 +113,9 @@ def run(text: str, workdir: Path, log_name: str = "log.lammps") -> EngineRun:
     if code != 0:
         message = io.error_message(log, stderr + stdout) or stderr[-500:]
         raise LammpsError(f"LAMMPS failed ({message})", io.last_step(log))
+    used = ranks_of(log)
+    if used is not None and used != ranks:
+        raise MpiMismatch(f"LAMMPS ran on {used} MPI rank(s), {ranks} asked for: {cmd[0]} and {executable()} do "
+                          f"not belong to the same MPI (a serial `lmp` under mpirun runs {ranks} separate copies)")
     return EngineRun(engine="lammps", version=io.version(log), command=shlex.join(cmd), wall_time=wall,
-                     max_rss_mb=rss)
+                     max_rss_mb=rss, ranks=ranks)

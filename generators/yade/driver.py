@@ -41,6 +41,12 @@ def _unsupported(setup: dem.Setup, what: str) -> dem.UnsupportedSetup:
     return dem.UnsupportedSetup(f"{setup.name}: the YADE driver does not run {what} yet; run this scene in LAMMPS")
 
 
+def _one_process(setup: dem.Setup, ranks: int) -> None:
+    if ranks != 1:
+        raise dem.UnsupportedSetup(f"{setup.name}: ranks = {ranks}; YADE runs one process (ranks = 1): MPI ranks "
+                                   "are a LAMMPS setting")
+
+
 def _species_contacts(setup: dem.Setup) -> dict[str, list[float]]:
     """Per-species overrides as (friction, rolling friction). YADE gives a contact the smaller of its two
     bodies' friction angles and the harmonic mean of their rolling coefficients: that is LAMMPS'
@@ -87,9 +93,11 @@ def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None) 
                                       "listening_sockets": report.get("listening_sockets")})
 
 
-def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
+def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particles, EngineRun]:
     """Settle with Cundall's local damping or a viscous drag until the kinetic energy per moving sphere is
-    below that of a nominal sphere at the settling speed, checked every ``check_every`` seconds."""
+    below that of a nominal sphere at the settling speed, checked every ``check_every`` seconds (one process:
+    ``ranks`` must be 1)."""
+    _one_process(setup, ranks)
     s = setup.schedule
     mass = contact.particle_mass(setup.density, setup.nominal_radius, setup.dim)
     if s.damping_kind == "local":
@@ -106,8 +114,10 @@ def settle(setup: dem.Setup, workdir: Path) -> tuple[dem.Particles, EngineRun]:
     return dem.Particles(arrays["position"], p.radius, p.species, p.groups), _engine_run(run, setup, None)
 
 
-def record(setup: dem.Setup, workdir: Path) -> tuple[dem.Frames, EngineRun]:
-    """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps."""
+def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames, EngineRun]:
+    """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps (one
+    process: ``ranks`` must be 1)."""
+    _one_process(setup, ranks)
     r = setup.schedule
     motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity)} for m in setup.motions]
     job = {"mode": "record", **_job(setup), "motions": motions, "start": r.start, "every": r.every,

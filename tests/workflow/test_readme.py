@@ -57,6 +57,8 @@ PROMISES = {
     "results/meteorite/metrics.csv": {"builds": ({"meteorite"}, "evaluate")},
     "results/shear/metrics.csv": {"builds": ({"shear"}, "evaluate")},
     "results/collapse/metrics.csv": {"builds": ({"collapse"}, "evaluate")},
+    "results/meteorite/metrics.csv --config 'meteorite={ranks: 2}'":      # how LAMMPS runs: reruns nothing
+        {"builds": ({"meteorite"}, "evaluate"), "reruns": set()},
     "results/collapse/physics.csv": {"builds": ({"collapse"}, "physics")},
     "results/slide/dataset/stats.json": {"builds": ({"slide"}, "dataset"), "never": {"train", "evaluate"}},
     "results/slide/metrics.csv --forcerun train": {**SLIDE, "reruns": {"train", "rollout", "evaluate"}},
@@ -178,7 +180,7 @@ def test_documented_partial_reruns_rerun_only_what_they_say(ci_results, tmp_path
         jobs = dry_run(shlex.split(key), ci_results.parent, solidgn)
         rules, folders = Counter(r for r, _ in jobs), set().union(*(f for _, f in jobs))
         scene = next(iter(PROMISES[key]["builds"][0]))
-        if set(rules) != reruns[key] or folders != {scene}:
+        if set(rules) != reruns[key] or not folders <= {scene}:
             return f"{key}: reruns {dict(rules)} in {sorted(folders)}"
         return None
 

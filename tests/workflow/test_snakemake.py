@@ -168,6 +168,20 @@ def test_added_sim_runs_only_that_sim(workdir):
     assert jobs.get("simulate") == 1 and jobs.get("convert") == 1 and "prepare" not in jobs
 
 
+def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
+    """`ranks` says how LAMMPS runs, not what it computes: nothing reruns; a new sim's job takes 2 of the
+    cores and runs on 2 MPI ranks, or on 1 where Snakemake has 1 core to give."""
+    ranks = SMALL[:-1] + ", ranks: 2}"
+    assert planned(snakemake(workdir, TARGET, "-n", config=(ranks,))) == {}
+    for cores, expected in (("-c2", 2), ("-c1", 1)):
+        proc = snakemake(workdir, TARGET, "-n", "-p", cores, config=(ranks.replace("n_sims: 3", "n_sims: 4"),))
+        jobs = planned(proc)
+        assert jobs.get("simulate") == 1 and "prepare" not in jobs
+        job = (proc.stdout + proc.stderr).split("rule simulate:")[1].split("\nrule ")[0]
+        assert ("threads: 2" in job) == (expected == 2), job
+        assert f"--ranks {expected} >" in job, job
+
+
 def test_changed_stiffness_resettles_the_packing(workdir):
     jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", young: 5.0e9}",)))
     assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3

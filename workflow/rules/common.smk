@@ -15,7 +15,7 @@ from generators import scales as gscales
 from generators import scenes as gscenes
 from generators import sweep as gsweep
 from generators.packing import packing_key
-from generators.scene import SURROGATE_KEYS
+from generators.scene import EXECUTION_KEYS, SURROGATE_KEYS
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
@@ -88,8 +88,8 @@ def is_scene(wildcards) -> bool:
 
 
 def scene_config_json(wildcards) -> str:
-    """The scene's DEM and sweep settings (what the sweep table depends on)."""
-    return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in SURROGATE_KEYS})
+    """The scene's DEM and sweep settings (what the sweep table depends on: not how an engine runs)."""
+    return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in (*SURROGATE_KEYS, *EXECUTION_KEYS)})
 
 
 def scene_engine(wildcards) -> str:
@@ -105,6 +105,22 @@ def run_engine(wildcards) -> str:
     """The engine of a run: the cross-check's other engine, or the scene's configured one."""
     parts = wildcards.run.split("/")
     return parts[2] if len(parts) == 3 and parts[2] in ENGINES else CFG[run_scene(wildcards)]["engine"]
+
+
+def _ranks(scene: str, engine: str) -> int:
+    """The MPI ranks of a LAMMPS run of ``scene`` (its `ranks` key); YADE runs one process."""
+    return CFG[scene]["ranks"] if engine == "lammps" else 1
+
+
+def prepare_ranks(wildcards) -> int:
+    """`threads:` of a prepare job: the ranks its engine runs on (Snakemake caps them at --cores, and the
+    job runs on the threads it is given)."""
+    return _ranks(wildcards.scene, scene_engine(wildcards))
+
+
+def simulate_ranks(wildcards) -> int:
+    """`threads:` of a simulate job: the ranks of the run's engine (capped at --cores, as prepare's)."""
+    return _ranks(run_scene(wildcards), run_engine(wildcards))
 
 
 def run_dir(scene: str, engine: str) -> str:

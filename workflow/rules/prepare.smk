@@ -5,6 +5,7 @@ rule prepare:
         kept_scale,
     output:
         directory("results/{scene}/packings/{key}"),
+    threads: prepare_ranks
     params:
         packing=packing_params_json,
         engine=scene_engine,
@@ -14,4 +15,4 @@ rule prepare:
         "results/{scene}/benchmarks/prepare/{key}.tsv"
     shell:
         "graphdem prepare --scene {wildcards.scene} --engine {params.engine:q} --params {params.packing:q} "
-        "--out {output:q} > {log} 2>&1"
+        "--out {output:q} --ranks {threads} > {log} 2>&1"

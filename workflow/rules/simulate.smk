@@ -5,6 +5,7 @@ rule simulate:
         scale=kept_scale,
     output:
         directory("results/{run}/raw/{sim}"),
+    threads: simulate_ranks
     params:
         sim=sim_row_json,
         scene=run_scene,
@@ -14,4 +15,4 @@ rule simulate:
         "results/{run}/benchmarks/simulate/{sim}.tsv"
     shell:
         "graphdem simulate --scene {params.scene:q} --sim {params.sim:q} "
-        "--packing {input.packing:q} --out {output:q} > {log} 2>&1"
+        "--packing {input.packing:q} --out {output:q} --ranks {threads} > {log} 2>&1"
