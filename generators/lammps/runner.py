@@ -72,7 +72,7 @@ def mpirun(ranks: int) -> str:
     path = mpirun_path()
     if path is None:
         raise MpiUnavailable(
-            f"LAMMPS on ranks = {ranks} MPI ranks needs `mpirun` on PATH (Debian's openmpi-bin, which the "
+            f"ranks = {ranks}: LAMMPS on {ranks} MPI ranks needs `mpirun` on PATH (Debian's openmpi-bin, which the "
             f"`lammps` package installs) or {MPIRUN_ENV} set to it; allowed without it: ranks = 1")
     return path
 

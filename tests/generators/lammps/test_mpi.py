@@ -123,6 +123,31 @@ def test_an_lmp_of_another_mpi_is_refused(runs, tmp_path, monkeypatch):
         engine.simulate(meteorite.SCENE, runs["row"], runs["packing"], tmp_path / "raw", ranks=2)
 
 
+@pytest.mark.engine
+def test_a_3d_shear_box_with_moving_walls_on_two_ranks(tmp_path):
+    """The shear box in LAMMPS (3D, its walls kinematic particles moved by `fix move`, split between the
+    ranks): the same particles, the walls where the serial run puts them bit for bit, the soil to the last
+    printed digit."""
+    from generators.scenes import shear
+    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008,
+                                                "frames": 6}})["shear"]
+    engine.prepare(shear.SCENE, "lammps", shear.SCENE.packings(cfg)[0], tmp_path / "packing")
+    row = {**sweep.build("shear", cfg).iloc[0].to_dict(), "engine": "lammps"}
+    raw = {}
+    for ranks in (1, 2):
+        rec = engine.simulate(shear.SCENE, row, tmp_path / "packing", tmp_path / f"raw{ranks}", ranks=ranks)
+        assert rec.run.ranks == ranks
+        raw[ranks] = driver.read_raw(tmp_path / f"raw{ranks}", rec.dt)
+    a, b = raw[1], raw[2]
+    assert a["position"].shape == b["position"].shape and a["position"].shape[2] == 3
+    np.testing.assert_array_equal(a["species"], b["species"])
+    walls = np.isin(a["species"], shear.SCENE.kinematic_species)
+    assert np.abs(a["position"][-1, walls] - a["position"][0, walls]).max() > 0        # the walls did move
+    np.testing.assert_array_equal(a["position"][:, walls], b["position"][:, walls])
+    last_digit = 10.0 ** (np.floor(np.log10(np.maximum(np.abs(a["position"]), 1e-30))) - 9)
+    assert np.all(np.abs(a["position"] - b["position"]) <= last_digit * 1.0001)
+
+
 def test_the_serial_command_is_lmp_alone():
     assert runner.command(1)[0].endswith("lmp") and len(runner.command(1)) == 3
 
