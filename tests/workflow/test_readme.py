@@ -80,8 +80,8 @@ PROMISES = {
         {"builds": ({"shear"}, "evaluate"),
          "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/slide/vtk": {"builds": ({"slide"}, "export")},
-    "--resources gpus=1 results/slide/metrics.csv --config device=cuda": SLIDE,
-    "--resources gpus=4 results/slide/metrics.csv --config device=cuda 'launch={launcher: torchrun, processes: 4}'":
+    "results/slide/metrics.csv --resources gpus=1 --config device=cuda": SLIDE,
+    "results/slide/metrics.csv --resources gpus=4 --config device=cuda 'launch={launcher: torchrun, processes: 4}'":
         SLIDE,
     "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
         {"tested_by": "tests/workflow/test_slurm.py"},
@@ -144,7 +144,7 @@ def test_every_documented_snakemake_command_has_a_promise():
     assert commands - PROMISES.keys() == set(), "documented commands with no promise in PROMISES"
     assert PROMISES.keys() - commands == set(), "promises of commands no longer documented"
     assert "results/slide/metrics.csv --forcerun train" in commands      # target before --forcerun, which
-    assert not any(c.startswith("--forcerun") for c in commands)          # would swallow it
+    assert not any(c.startswith(("--forcerun", "--resources")) for c in commands)   # would swallow it
     for key, promise in PROMISES.items():                                  # tested elsewhere: that test runs it
         if "tested_by" in promise:
             assert all(arg in (ROOT / promise["tested_by"]).read_text() for arg in ("scale=paper", "slurm")), key
