@@ -5,7 +5,9 @@ results were built with. Results of another config (the usual case: results of `
 reported without it) then look half-built: every output of a job of the report's config that never ran
 (its sims, raw runs, packings and rollouts) is missing, Snakemake prints one "Missing metadata" warning
 per such file (208 for the ci-scale slide, meteorite and shear reported at the default scale) and goes on,
-showing the plots on disk as if they came from the report's config. The workflow calls :func:`check`
+showing the plots on disk as if they came from the report's config. A change of scale is refused earlier,
+by the scale guard (generators/scales.py); this guard catches every other config the results were not
+built with (more sims, another sweep). The workflow calls :func:`check`
 from the report's category function, which Snakemake calls only while it builds a report, before the
 first result is added; it raises with what is unbuilt and what to do (docs/architecture.md, "The report").
 """

@@ -257,12 +257,17 @@ def train_gpus(wildcards) -> int:
     return glaunch.train_gpus(CFG)
 
 
+def rollout_paths(scene: str, ids: list[str]) -> list[str]:
+    """The rollout stage's files of a scene's sims ``ids`` (one job per sim)."""
+    return [f"results/{scene}/rollouts/{i}.h5" for i in ids]
+
+
 def evaluated_rollouts(wildcards) -> list[str]:
     """A scene's test rollouts (the rollout stage, one job per sim); a public benchmark rolls out inside
     evaluate, once per protocol."""
     if not is_scene(wildcards):
         return []
-    return [f"results/{wildcards.name}/rollouts/{i}.h5" for i in test_ids(wildcards.name)]
+    return rollout_paths(wildcards.name, test_ids(wildcards.name))
 
 
 def evaluation_args(wildcards) -> list[str]:
@@ -441,4 +446,4 @@ def export_sims(wildcards) -> list[str]:
 
 
 def export_rollouts(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/rollouts/{i}.h5" for i in export_ids(wildcards)]
+    return rollout_paths(wildcards.scene, export_ids(wildcards))
