@@ -76,6 +76,20 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
     return nxt, seconds_graph
 
 
+def keep_in_domain(position: torch.Tensor, moving: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor,
+                   clamped: int = 0) -> tuple[torch.Tensor, int]:
+    """``position`` [N, D] with every moving particle outside the box ``[lower, upper]`` put back on
+    the face it crossed (runtime switch ``keep_in_domain``); returns it and ``clamped`` plus the number
+    of particles put back."""
+    lo, hi = lower.to(position), upper.to(position)
+    outside = moving & ((position < lo) | (position > hi)).any(dim=-1)
+    if not outside.any():
+        return position, clamped
+    position = position.clone()
+    position[outside] = torch.maximum(torch.minimum(position[outside], hi), lo)
+    return position, clamped + int(outside.sum())
+
+
 @torch.inference_mode()
 def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, runtime: Runtime | None = None,
             start: torch.Tensor | None = None, forced: bool = False, given: int | None = None) -> Rollout:
@@ -106,7 +120,8 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype, device=device)
     positions[:g] = sim.position[:g] if start is None else start.to(device)
     props = None if sim.props is None else sim.props.to(dtype)
-    counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0}
+    counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0}
+    moving = ~sim.kinematic
     first_bad = None
     t_graph = 0.0
     start_clock = time.perf_counter()
@@ -135,11 +150,14 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
+        if runtime is not None and runtime.keep_in_domain:
+            nxt, counts["clamped"] = keep_in_domain(nxt, moving, simulator.lower, simulator.upper, counts["clamped"])
         positions[t] = nxt
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
+    timing["clamped"] = counts["clamped"]                  # particle-steps put back into the box
     return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, timing)
 
 

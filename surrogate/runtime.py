@@ -17,7 +17,14 @@ one's measured effect):
 * ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is
   below this speed (m per frame) and that has no awake particle within R sleeps: it keeps its
   position, gets no prediction, and has no edge to another sleeping or kinematic particle. It wakes
-  as soon as an awake particle comes within R.
+  as soon as an awake particle comes within R;
+* ``keep_in_domain`` (exact wherever the DEM keeps its particles in the box, as every recorded sim
+  does: a particle leaving it is a blow-up, :mod:`generators.blowup`): a predicted position outside
+  the dataset's box ``[lower, upper]`` is put back on the box face it crossed, so the particle stops
+  there like on a rigid, perfectly inelastic wall (its velocity normal to the face, a position
+  difference, becomes zero). The model has boundary features but no hard boundary; without this a
+  long rollout can drift out of the domain (docs/performance.md). The rollout counts the particles
+  put back (``clamped_per_step``), so the correction is never hidden.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ class Runtime:
     prune_isolated: bool
     precision: str
     sleep_speed: float | None
+    keep_in_domain: bool
 
     def __post_init__(self):
         if self.precision not in PRECISIONS:

@@ -12,7 +12,7 @@ from surrogate import rollout, runtime
 pytestmark = pytest.mark.engine
 
 PLAIN = runtime.Runtime(split_edge_mlp=False, skip_kinematic_pairs=True, prune_isolated=False, precision="float64",
-                        sleep_speed=None)
+                        sleep_speed=None, keep_in_domain=False)
 
 
 def prepared(simulator, rt):

@@ -7,11 +7,12 @@ import pytest
 import torch
 
 from surrogate import runtime, stability
+from surrogate.rollout import keep_in_domain, rollout
 
 pytestmark = pytest.mark.engine
 
 RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
-                     sleep_speed=None)
+                     sleep_speed=None, keep_in_domain=False)
 
 
 def test_error_growth_is_the_geometric_mean_ratio_per_step():
@@ -40,6 +41,44 @@ def test_escaping_particles_are_counted_with_the_first_frame(untrained):
     assert not row["stable"] and row["escaped_particles"] == int((~sim.kinematic).sum())
     assert f"left the bounds, the first at frame {row['first_escape_frame']}" in row["cause"]
     assert row["mse_growth_per_step"] > 1
+
+
+def test_keep_in_domain_holds_the_same_escaping_particles_on_the_box_face(untrained):
+    """The runtime switch keep_in_domain: the model that drives every particle out through +x (above)
+    keeps them all in the box, each on the face it reached, and the clamps are counted."""
+    simulator, sim = untrained
+    with torch.no_grad():
+        simulator.acceleration_std.mul_(1e-6)
+        simulator.acceleration_mean.copy_(torch.tensor([3.0, 0.0]))
+    walls = replace(RT, keep_in_domain=True)
+    row = stability.long_rollout(simulator, walls, sim, 5, 0.01, 0, max_overlap=0.5)
+    assert row["escaped_particles"] == 0 and "left the bounds" not in row["cause"]
+    result = rollout(simulator, sim, n_frames=5 * sim.n_frames, runtime=walls)
+    moving = ~sim.kinematic.numpy()
+    last = result.position[-1, moving]
+    upper = simulator.upper.numpy()
+    assert np.allclose(last[:, 0], upper[0])                    # every one stopped on the +x face
+    assert np.all(last[:, 1] <= upper[1]) and np.all(last >= simulator.lower.numpy())
+    assert result.timing["clamped"] > 0
+
+
+def test_keep_in_domain_changes_nothing_inside_the_box(untrained):
+    simulator, sim = untrained
+    free = rollout(simulator, sim, runtime=RT)
+    walls = rollout(simulator, sim, runtime=replace(RT, keep_in_domain=True))
+    inside = np.all((free.position >= simulator.lower.numpy()) & (free.position <= simulator.upper.numpy()))
+    assert inside and walls.timing["clamped"] == 0
+    np.testing.assert_array_equal(free.position, walls.position)
+
+
+def test_keep_in_domain_puts_back_only_moving_particles_outside():
+    x = torch.tensor([[-0.5, 0.5], [0.5, 1.5], [0.2, 0.3], [2.0, 2.0]])
+    moving = torch.tensor([True, True, True, False])
+    lower, upper = torch.zeros(2), torch.ones(2)
+    out, n = keep_in_domain(x, moving, lower, upper, clamped=4)
+    assert n == 6
+    assert torch.equal(out, torch.tensor([[0.0, 0.5], [0.5, 1.0], [0.2, 0.3], [2.0, 2.0]]))
+    np.testing.assert_array_equal(x[0].numpy(), [-0.5, 0.5])   # the input is left as it was
 
 
 def test_a_non_finite_rollout_is_named(untrained):
