@@ -232,6 +232,10 @@ def _check_contenders(name: str, cfg: dict) -> None:
         if perf[key] not in perf[kind]:
             raise ConfigError(f"config key '{name}.performance.{key}' = {perf[key]!r} is not a {kind} contender; "
                               f"allowed: {sorted(perf[kind])} (the keys of '{name}.performance.{kind}')")
+    for contender, changes in perf["dem"].items():
+        if "dt_safety" in changes and "dt_factor" in changes:
+            raise ConfigError(f"config key '{name}.performance.dem.{contender}': give dt_safety (a fraction of the "
+                              "stable limit) or dt_factor (a multiple of the data's step), not both")
 
 
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")

@@ -76,9 +76,10 @@ def perturbed(packing: dem.Particles, kinematic_species: tuple[int, ...], scale:
     return dem.Particles(x, packing.radius, packing.species, packing.groups)
 
 
-def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: int = 1) -> record.SimRecord:
-    """Run sweep row ``row`` from its settled packing in the row's engine (LAMMPS: on ``ranks`` MPI ranks); raw
-    output, the engine's own input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the
+def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: int = 1,
+             threads: int = 1) -> record.SimRecord:
+    """Run sweep row ``row`` from its settled packing in the row's engine (LAMMPS: on ``ranks`` MPI ranks; YADE:
+    on ``threads`` threads); raw output, the engine's own input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the
     sim, frame and cause. A row with ``perturbation`` > 0 starts from the packing perturbed by that many radii
     (:func:`perturbed`)."""
     out_dir = Path(out_dir)
@@ -90,7 +91,7 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: i
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:
         tmp.mkdir()
-        frames, run = runner.record(setup, tmp, ranks=ranks)
+        frames, run = runner.record(setup, tmp, ranks=ranks, threads=threads)
         blowup.check_trajectory(setup.name, frames.position, frames.radius, setup.kinematic,
                                 np.asarray(setup.lower), np.asarray(setup.upper), setup.max_overlap)
         if setup.max_energy_gain is not None:

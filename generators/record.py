@@ -31,6 +31,8 @@ class EngineRun:
     wall_time: float                     # s, the whole process
     max_rss_mb: float = float("nan")     # peak resident memory of the engine process
     window_seconds: float | None = None  # s, the engine's own timing of the recorded window
+    runup_seconds: float | None = None   # s, the engine's own timing of the run-up before the first recorded frame
+    threads: int = 1                     # threads per process (YADE's -j; LAMMPS runs one per MPI rank)
     steps: int = 0                       # DEM steps run
     ranks: int = 1                       # MPI ranks the engine ran on (LAMMPS under mpirun; 1: one process)
     notes: dict[str, Any] = field(default_factory=dict)   # engine-specific facts (e.g. YADE's closed servers)

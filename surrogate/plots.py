@@ -129,3 +129,38 @@ def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
         fig.savefig(tmp, dpi=130)
     plt.close(fig)
     return Path(path)
+
+
+def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> Path:
+    """The surrogate's speed-up over the DEM against the DEM sub-steps per frame (log-log): one line per
+    stable DEM contender's cost per step, its own sub-steps per frame marked; the matched DEM (as
+    accurate on every measure) drawn bold. Above 1 the surrogate is faster."""
+    from surrogate.performance import speedup_curve
+    row = table.loc[table["contender"] == main].iloc[0]
+    dem = table[(table["kind"] == "dem") & table["stable"].astype(bool) & table["seconds_per_dem_step"].notna()]
+    top = max(10.0, float(dem["dem_steps_per_frame"].max()) * 10) if len(dem) else 1e4
+    substeps = np.logspace(0, np.log10(top), 60)
+    curve = speedup_curve(table, main, substeps)
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    colours = plt.cm.viridis(np.linspace(0, 0.9, max(len(dem), 1)))
+    for colour, (_, d) in zip(colours, dem.iterrows(), strict=False):
+        part = curve[curve["contender"] == d["contender"]]
+        bold = d["contender"] == row.get("matched_dem")
+        ax.plot(part["substeps_per_frame"], part["speedup"], color=colour, lw=2.4 if bold else 1.0,
+                label=f"{d['contender']} ({d['cores']:.0f} core{'s' if d['cores'] > 1 else ''})"
+                      + (", as accurate" if bold else ""))
+        actual = d["dem_steps_per_frame"] * d["seconds_per_dem_step"] / row["seconds_per_frame"]
+        ax.scatter([d["dem_steps_per_frame"]], [actual], color=colour, s=30, zorder=3)
+    ax.axhline(1.0, color="black", lw=0.8)
+    ax.axhline(10.0, color="grey", lw=0.8, ls="--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("DEM sub-steps per recorded frame (log; dots: each contender's own)")
+    ax.set_ylabel(f"speed-up of {main} over the DEM (log)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130)
+    plt.close(fig)
+    return Path(path)

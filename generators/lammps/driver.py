@@ -24,9 +24,12 @@ CONTACT_MODEL = deck.CONTACT_MODEL
 
 
 def _engine_run(run: EngineRun, log: Path) -> EngineRun:
-    """The run with LAMMPS' own loop time of its last run (the recorded window) and its step count."""
+    """The run with LAMMPS' own loop time of its last run (the recorded window), of the runs before it
+    (the run-up) and its step count."""
     loops = io.loop_times(log)
-    return dataclasses.replace(run, window_seconds=loops[-1][0] if loops else None, steps=sum(n for _, n in loops))
+    return dataclasses.replace(run, window_seconds=loops[-1][0] if loops else None,
+                               runup_seconds=sum(t for t, _ in loops[:-1]) if loops else None,
+                               steps=sum(n for _, n in loops))
 
 
 def _blowup(setup: dem.Setup, exc: runner.LammpsError, start: int, every: int) -> blowup.BlowUp:
@@ -42,9 +45,16 @@ def _blowup(setup: dem.Setup, exc: runner.LammpsError, start: int, every: int) -
     return blowup.BlowUp(setup.name, max(0, exc.step - start) // every, cause)
 
 
-def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particles, EngineRun]:
+def _one_thread(setup: dem.Setup, threads: int) -> None:
+    if threads != 1:
+        raise dem.UnsupportedSetup(f"{setup.name}: threads = {threads}; LAMMPS runs one thread per MPI rank here "
+                                   "(threads = 1): use ranks for more cores")
+
+
+def settle(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Particles, EngineRun]:
     """Settle ``setup`` (a Settle schedule) in ``workdir`` on ``ranks`` MPI ranks; the particles at rest, in
     setup order."""
+    _one_thread(setup, threads)
     workdir = Path(workdir)
     deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name} loose packing")
     run = runner.run(deck.settle_deck(setup), workdir, ranks=ranks)
@@ -56,9 +66,10 @@ def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particl
         _engine_run(run, workdir / "log.lammps")
 
 
-def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames, EngineRun]:
+def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
     """Run ``setup`` (a Record schedule) in ``workdir`` on ``ranks`` MPI ranks; blow-ups reported by LAMMPS
     raise BlowUp."""
+    _one_thread(setup, threads)
     workdir = Path(workdir)
     schedule = setup.schedule
     deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name}")

@@ -82,18 +82,20 @@ def _job(setup: dem.Setup) -> dict:
     return job
 
 
-def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None) -> EngineRun:
+def _engine_run(run: EngineRun, setup: dem.Setup, window_seconds: float | None,
+                runup_seconds: float | None = None) -> EngineRun:
     """The run with its window timing and step count; refused if YADE kept a listening socket."""
     report = run.notes
     left = report.get("listening_at_start", []) + report.get("listening_sockets", [])
     if left:
         raise runner.YadeError(f"{setup.name}: YADE held listening sockets {left} during the run")
-    return dataclasses.replace(run, window_seconds=window_seconds, steps=int(report["iterations"]),
+    return dataclasses.replace(run, window_seconds=window_seconds, runup_seconds=runup_seconds,
+                               steps=int(report["iterations"]),
                                notes={"servers_closed": report.get("servers_closed"),
                                       "listening_sockets": report.get("listening_sockets")})
 
 
-def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particles, EngineRun]:
+def settle(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Particles, EngineRun]:
     """Settle with Cundall's local damping or a viscous drag until the kinetic energy per moving sphere is
     below that of a nominal sphere at the settling speed, checked every ``check_every`` seconds (one process:
     ``ranks`` must be 1)."""
@@ -108,15 +110,15 @@ def settle(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Particl
         raise _unsupported(setup, f"settling damping {s.damping_kind!r} (it damps with 'local' or 'viscous')")
     job = {"mode": "settle", **_job(setup), **damping, "check_every": s.check_every,
            "settle_time": s.max_time, "energy_tol": 0.5 * mass * s.speed**2}
-    arrays, run = runner.run(job, Path(workdir), "settle")
+    arrays, run = runner.run(job, Path(workdir), "settle", threads=threads)
     (Path(workdir) / "settle.npz").unlink()
     p = setup.particles
     return dem.Particles(arrays["position"], p.radius, p.species, p.groups), _engine_run(run, setup, None)
 
 
-def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames, EngineRun]:
+def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
     """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps (one
-    process: ``ranks`` must be 1)."""
+    process: ``ranks`` must be 1; ``threads`` OpenMP threads, YADE's ``-j``)."""
     _one_process(setup, ranks)
     r = setup.schedule
     motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity)} for m in setup.motions]
@@ -124,7 +126,7 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames,
            "frames": r.frames}
     workdir = Path(workdir)
     try:
-        arrays, run = runner.run(job, workdir, "record")
+        arrays, run = runner.run(job, workdir, "record", threads=threads)
     except runner.YadeError as exc:   # a failed run, not a numerical blow-up (the trajectory checks name those)
         raise runner.YadeError(f"{setup.name}: {exc}") from exc
     p = setup.particles
@@ -134,7 +136,7 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1) -> tuple[dem.Frames,
     frames = dem.Frames(position=arrays["position"], step=arrays["step"], time=arrays["time"], mass=arrays["mass"],
                         radius=p.radius, kinetic_energy=arrays["kinetic_energy"],
                         kinematic_force=arrays["kinematic_force"])
-    return frames, _engine_run(run, setup, float(arrays["loop_seconds"]))
+    return frames, _engine_run(run, setup, float(arrays["loop_seconds"]), float(arrays["runup_seconds"]))
 
 
 def read_raw(raw_dir: Path, dt: float) -> dict:

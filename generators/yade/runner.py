@@ -71,18 +71,21 @@ def _version(path: str) -> str:
     return match.group(1) if match else "unknown"
 
 
-def run(job: dict, workdir: Path, name: str) -> tuple[dict, EngineRun]:
-    """Write ``job`` to workdir/<name>.json, run the script on it, return its arrays and the run."""
+def run(job: dict, workdir: Path, name: str, threads: int = 1) -> tuple[dict, EngineRun]:
+    """Write ``job`` to workdir/<name>.json, run the script on it on ``threads`` OpenMP threads (YADE's
+    ``-j``), return its arrays and the run."""
+    if int(threads) < 1:
+        raise ValueError(f"YADE threads = {threads!r}: a positive number of threads")
     workdir = Path(workdir).resolve()        # yade runs inside workdir: every path it is given is absolute
     script = workdir / SCRIPT
     script.write_text(resources.files("generators.yade").joinpath("scripts", SCRIPT).read_text())
     out = workdir / f"{name}.npz"
     (workdir / f"{name}.json").write_text(json.dumps({**job, "out": str(out)}))
     exe = executable()
-    cmd = [*interpreter(exe), "-c", LAUNCH, SCRIPT, exe, "-n", "-x", "-j", "1", SCRIPT, f"{name}.json"]
+    cmd = [*interpreter(exe), "-c", LAUNCH, SCRIPT, exe, "-n", "-x", "-j", str(int(threads)), SCRIPT, f"{name}.json"]
     # Debian's python runs yade: the pipeline's virtual environment must not leak into it
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
-    env.update(OMP_NUM_THREADS="1", DISPLAY="")
+    env.update(OMP_NUM_THREADS=str(int(threads)), DISPLAY="")
     log = workdir / f"{name}.log"
     with open(log, "w") as fh:
         code, wall, rss = run_measured(cmd, workdir, env, fh, subprocess.STDOUT)
@@ -93,4 +96,4 @@ def run(job: dict, workdir: Path, name: str) -> tuple[dict, EngineRun]:
         arrays = {k: data[k] for k in data.files}
     report = json.loads(Path(str(out) + ".json").read_text())
     return arrays, EngineRun(engine="yade", version=version(), command=shlex.join(cmd), wall_time=wall,
-                             max_rss_mb=rss, notes=report)
+                             max_rss_mb=rss, threads=int(threads), notes=report)

@@ -85,7 +85,7 @@ PROMISES = {
         SLIDE,
     "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
         {"tested_by": "tests/workflow/test_slurm.py"},
-    "results/slide/performance.csv": {"builds": ({"slide"}, "performance")},
+    "results/slide/benchmark.csv": {"builds": ({"slide"}, "performance")},
     "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
     "results/crosscheck.csv --config scale=ci":

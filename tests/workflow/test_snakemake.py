@@ -38,7 +38,7 @@ def planned(proc) -> dict[str, int]:
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     wd = tmp_path_factory.mktemp("wf")
-    proc = snakemake(wd, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-c2")
+    proc = snakemake(wd, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-c2")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return wd
 
@@ -81,7 +81,7 @@ def test_surrogate_stage_outputs(workdir):
 def test_performance_stage_outputs(workdir):
     import pandas as pd
     res = workdir / "results" / "slide"
-    table = pd.read_csv(res / "performance.csv").set_index("contender")
+    table = pd.read_csv(res / "benchmark.csv").set_index("contender")
     # the reference rerun of the DEM reproduces the data bit for bit (one thread, same inputs)
     assert table.at["reference", "mse"] == 0.0 and table.at["reference", "acc_Max Ht"] == 100.0
     assert table.at["dt_x2", "dem_steps_per_frame"] == pytest.approx(table.at["reference", "dem_steps_per_frame"] / 2,
@@ -154,7 +154,7 @@ def test_unchanged_rerun_does_nothing(workdir):
 def test_changed_device_or_launcher_reruns_nothing(workdir):
     """Machine settings (docs/scaling.md): where and in how many processes it computes, not what."""
     machine = ("device=cpu", "launch={launcher: torchrun, processes: 2}")
-    assert planned(snakemake(workdir, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-n",
+    assert planned(snakemake(workdir, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-n",
                              config=(SMALL, *machine))) == {}
 
 

@@ -1,5 +1,5 @@
-# Stage performance: run time against error. One job per contender, each alone on the machine
-# (threads = all cores, so no two timings overlap); the torch thread count is performance.threads.
+# Stage performance: run time against error (results/{scene}/benchmark.csv), for every registered scene. One job
+# per contender, each alone on the machine (threads = all cores, so no two timings overlap).
 rule performance_dem:
     input:
         truth=timed_sims,
@@ -55,12 +55,15 @@ rule performance:
         tables=contender_tables,
         packings=timed_packings,
     output:
-        table=report("results/{scene}/performance.csv", caption="../report/performance.rst",
+        table=report("results/{scene}/benchmark.csv", caption="../report/performance.rst",
                      category=report_category, subcategory="performance",
-                     labels={"figure": "performance.csv (download)", "scene": "{scene}"}),
+                     labels={"figure": "benchmark.csv (download)", "scene": "{scene}"}),
         plot=report("results/{scene}/plots/pareto.png", caption="../report/performance.rst",
                     category=report_category, subcategory="performance",
                     labels={"figure": "run time against error (Pareto front)", "scene": "{scene}"}),
+        substeps=report("results/{scene}/plots/speedup_substeps.png", caption="../report/performance.rst",
+                        category=report_category, subcategory="performance",
+                        labels={"figure": "speed-up against DEM sub-steps per frame", "scene": "{scene}"}),
     params:
         main=stage_setting("performance", "main"),
         reference=stage_setting("performance", "reference"),
@@ -70,5 +73,5 @@ rule performance:
         "results/{scene}/benchmarks/performance.tsv"
     shell:
         "graphdem performance-report --tables {input.tables:q} --packings {input.packings:q} --main {params.main:q} "
-        "--reference {params.reference:q} --out {output.table:q} --plot {output.plot:q} "
+        "--reference {params.reference:q} --out {output.table:q} --plot {output.plot:q} --substeps-plot {output.substeps:q} "
         "--title '{wildcards.scene}: run time against error' > {log} 2>&1"

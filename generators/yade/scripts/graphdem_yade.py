@@ -195,8 +195,10 @@ def record(job, out):
         for i, moving in zip(ids, motion["mask"], strict=True):
             if moving:
                 O.bodies[i].state.vel = vector3(motion["velocity"])
+    runup = time.perf_counter()
     if job["start"]:
         O.run(job["start"], True)
+    runup = time.perf_counter() - runup
     free = [not f for f in job["fixed"]]
     frames, steps, times, energies, forces = [], [], [], [], []
     loop = 0.0
@@ -212,7 +214,8 @@ def record(job, out):
         forces.append(force_on(ids, job["fixed"], job["dim"]))
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
              mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
-             kinematic_force=np.stack(forces), loop_seconds=loop)
+             kinematic_force=np.stack(forces), loop_seconds=loop,
+             runup_seconds=runup)
 
 
 def main():
