@@ -1,5 +1,6 @@
 """Run time against error: contender settings, the Pareto front and the headline ratios."""
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -46,13 +47,53 @@ def test_report_needs_the_reference():
 
 
 def test_dem_contender_settings_scale_the_step_and_the_stiffness():
-    row = {"id": "s", "dt_safety": 0.01, "dt": None, "young": 1e9}
+    row = {"id": "s", "dt_safety": 0.01, "dt": None, "young": 1e9, "engine": "lammps"}
     assert performance.dem_row(row, {"dt_factor": 4}) == {**row, "dt_safety": 0.04}
+    assert performance.dem_row(row, {"dt_safety": 0.5}) == {**row, "dt_safety": 0.5}
     assert performance.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
-    with pytest.raises(ValueError, match=r"unknown keys \['dt'\]; allowed: dt_factor, stiffness_factor"):
+    assert performance.dem_row(row, {"cores": 2, "dt_safety": 0.1}) == {**row, "dt_safety": 0.1}  # cores: not physics
+    with pytest.raises(ValueError, match=r"unknown keys \['dt'\]; allowed: dt_safety, dt_factor, stiffness_factor, cores"):
         performance.dem_row(row, {"dt": 1e-4})
+    with pytest.raises(ValueError, match="not both"):
+        performance.dem_row(row, {"dt_factor": 2, "dt_safety": 0.1})
     with pytest.raises(ValueError, match="must not fix an explicit dt"):
         performance.dem_row({**row, "dt": 1e-5}, {"dt_factor": 2})
+
+
+def test_cores_are_mpi_ranks_in_lammps_and_threads_in_yade():
+    assert performance.execution({"cores": 2}, "lammps") == (2, 1)
+    assert performance.execution({"cores": 2}, "yade") == (1, 2)
+    assert performance.execution({}, "yade") == (1, 1)
+
+
+def test_the_match_must_be_as_accurate_on_every_scene_metric():
+    table = contenders()
+    table["acc_Max Ht"] = [100.0, 90.0, 99.0, 95.0, float("nan"), float("nan")]
+    out = performance.report(table, main="graphdem", reference="reference", settling_seconds=None)
+    main = out[out["main"]].iloc[0]
+    # dt_x4 has the lower MSE but a worse Max Ht (90 < 95): the match on every measure is the reference
+    assert main["matched_dem_by_mse"] == "dt_x4" and main["speedup_vs_matched_dem_by_mse"] == pytest.approx(5.0)
+    assert main["matched_dem"] == "reference" and main["speedup_vs_matched_dem"] == pytest.approx(20.0)
+    # soft is as good on Max Ht (99) but not on the MSE (3.0 > 1.0): never a match
+    assert "soft" not in (main["matched_dem"], main["matched_dem_by_mse"])
+
+
+def test_break_even_against_the_fastest_dem_step():
+    table = contenders()
+    table.loc[table["contender"] == "soft", "seconds_per_dem_step"] = 0.0005       # e.g. on 2 cores
+    out = performance.report(table, main="graphdem", reference="reference", settling_seconds=None)
+    main = out[out["main"]].iloc[0]
+    assert main["break_even_substeps"] == pytest.approx(50.0)                    # against the reference's step
+    assert main["break_even_substeps_fastest"] == pytest.approx(100.0)           # against the cheapest step
+
+
+def test_speedup_grows_linearly_with_the_dem_substeps():
+    table = performance.report(contenders(), main="graphdem", reference="reference", settling_seconds=None)
+    curve = performance.speedup_curve(table, "graphdem", np.array([10.0, 100.0]))
+    ref = curve[curve["contender"] == "reference"].set_index("substeps_per_frame")["speedup"]
+    # 1 ms per DEM step against 50 ms per surrogate frame: 10 sub-steps 0.2x, 100 sub-steps 2x
+    assert ref[10.0] == pytest.approx(0.2) and ref[100.0] == pytest.approx(2.0)
+    assert "blown" not in set(curve["contender"])
 
 
 def test_operation_count_matches_the_article_size_model_by_hand():
