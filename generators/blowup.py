@@ -15,22 +15,29 @@ class BlowUp(RuntimeError):
         super().__init__(f"simulation {sim} blew up at frame {frame}: {cause}")
 
 
-def max_overlap_fraction(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) -> float:
-    """Largest overlap r_i + r_j - |x_i - x_j| over pairs, divided by the smaller radius.
+def overlap_fractions(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) -> np.ndarray:
+    """Every positive overlap r_i + r_j - |x_i - x_j| of a frame, divided by the pair's smaller radius.
 
     Pairs of two kinematic particles are ignored (their overlap is part of the geometry).
     """
     tree = cKDTree(x)
     pairs = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray")
     if len(pairs) == 0:
-        return 0.0
+        return np.zeros(0)
     i, j = pairs[:, 0], pairs[:, 1]
     keep = ~(kinematic[i] & kinematic[j])
     i, j = i[keep], j[keep]
-    if len(i) == 0:
-        return 0.0
-    overlap = radius[i] + radius[j] - np.linalg.norm(x[i] - x[j], axis=1)
-    return float(np.max(overlap / np.minimum(radius[i], radius[j])))
+    overlap = (radius[i] + radius[j] - np.linalg.norm(x[i] - x[j], axis=1)) / np.minimum(radius[i], radius[j])
+    return overlap[overlap > 0]
+
+
+def max_overlap_fraction(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) -> float:
+    """Largest overlap r_i + r_j - |x_i - x_j| over pairs, divided by the smaller radius (0 without contact).
+
+    Pairs of two kinematic particles are ignored (their overlap is part of the geometry).
+    """
+    overlaps = overlap_fractions(x, radius, kinematic)
+    return float(overlaps.max()) if len(overlaps) else 0.0
 
 
 def check_trajectory(sim: str, position: np.ndarray, radius: np.ndarray, kinematic: np.ndarray,

@@ -164,3 +164,30 @@ def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> 
         fig.savefig(tmp, dpi=130)
     plt.close(fig)
     return Path(path)
+
+
+def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:
+    """Kinetic energy (log) and the overlap distribution (max and 99th percentile of overlap / radius)
+    per frame of each long rollout, frames outside the physical envelope marked."""
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 6.0), sharex=True, constrained_layout=True)
+    quantile = [c for c in frames.columns if c.startswith("p") and c.endswith("_overlap")]
+    for (sim, length), part in frames.groupby(["sim", "length"]):
+        label = f"{sim}, {length}x window"
+        line, = top.plot(part["frame"], part["kinetic_energy"], lw=1.0, label=label)
+        bad = part[~part["in_envelope"].astype(bool)]
+        top.scatter(bad["frame"], bad["kinetic_energy"], color=line.get_color(), marker="x", s=14)
+        bottom.plot(part["frame"], part["max_overlap"], color=line.get_color(), lw=1.0)
+        if quantile:
+            bottom.plot(part["frame"], part[quantile[0]], color=line.get_color(), lw=1.0, ls=":")
+    top.set_yscale("log")
+    top.set_ylabel("kinetic energy of the moving particles")
+    bottom.set_ylabel("overlap / smaller radius\n(solid: max, dotted: 99th percentile)")
+    bottom.set_xlabel("frame")
+    top.set_title(f"{title} (x: outside the physical envelope)", fontsize=10)
+    top.legend(fontsize=7)
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130)
+    plt.close(fig)
+    return Path(path)

@@ -123,6 +123,16 @@ def test_stability_stage_outputs(workdir):
     assert dem.at[8.0, "cause"] and dem.at[8.0, "sim"] == first_test and dem.at[8.0, "left_behind"] == 0
     rollouts = table[table["test"] == "surrogate_long_rollout"]
     assert sorted(rollouts["n_frames"]) == [40, 80]                 # 5x and 10x the 8 recorded frames
+    assert (rollouts["escaped_particles"] == 0).all()                # keep_in_domain: every particle stays in
+    frames = pd.read_csv(res / "stability" / "frames.csv")
+    assert sorted(frames.groupby("length")["frame"].max()) == [39, 79]
+    assert (frames["outside"] == 0).all() and (frames["kinetic_energy"] >= 0).all()
+    for row in rollouts.itertuples():                                # the first frame out of the envelope, named
+        out = frames[(frames["length"] == row.factor) & ~frames["in_envelope"]]
+        assert row.frames_outside_envelope == len(out)
+        assert (pd.isna(row.first_frame_outside_envelope) if out.empty
+                else row.first_frame_outside_envelope == out["frame"].iloc[0])
+    assert (res / "plots" / "stability.png").stat().st_size > 10_000
     precision = table[table["test"] == "surrogate_precision"].set_index("setting")
     assert precision.at["float64", "max_difference_vs_float64"] == 0
     assert precision.at["float32", "max_difference_vs_float64"] < 1e-3

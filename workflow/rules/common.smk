@@ -386,7 +386,8 @@ def stressed_row_json(wildcards) -> str:
 def surrogate_stress_args(wildcards) -> list[str]:
     s = stage_config(wildcards.scene, "stability")
     return ["--lengths", *(str(n) for n in s["rollout_lengths"]), "--noise", str(s["history_noise"]),
-            "--seed", str(s["seed"]), "--max-overlap", str(CFG[wildcards.scene]["max_overlap"])]
+            "--seed", str(s["seed"]), "--max-overlap", str(CFG[wildcards.scene]["max_overlap"]),
+            "--energy-envelope", str(s["energy_envelope"])]
 
 
 def timed_ids(wildcards) -> list[str]:

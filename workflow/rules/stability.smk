@@ -23,7 +23,11 @@ rule stability_surrogate:
         checkpoint="results/{scene}/model/best.pt",
         sims=stressed_sims,
     output:
-        "results/{scene}/stability/surrogate.csv",
+        table="results/{scene}/stability/surrogate.csv",
+        frames="results/{scene}/stability/frames.csv",
+        plot=report("results/{scene}/plots/stability.png", caption="../report/stability.rst",
+                    category=report_category, subcategory="stability",
+                    labels={"figure": "long rollouts: energy and overlaps per frame", "scene": "{scene}"}),
     params:
         runtime=runtime_json,
         args=surrogate_stress_args,
@@ -38,7 +42,8 @@ rule stability_surrogate:
     shell:
         "graphdem stability-surrogate --checkpoint {input.checkpoint:q} --data {input.sims:q} "
         "--runtime-json {params.runtime:q} {params.args:q} {params.device:q} "
-        "--out {output:q} > {log} 2>&1"
+        "--out {output.table:q} --frames-out {output.frames:q} --plot {output.plot:q} "
+        "--title {wildcards.scene:q} > {log} 2>&1"
 
 
 rule stability:
