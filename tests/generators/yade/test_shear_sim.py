@@ -90,3 +90,17 @@ def test_a_pour_that_settles_below_the_box_height_is_refused(tiny):
     shear.check_filled(settled_high, cfg, "packing p")                          # reaches above H: accepted
     with pytest.raises(ValueError, match=r"packing p: the settled soil reaches z = .* below the box height"):
         shear.check_filled(packing.subset(packing.x[:, 2] < 0.5 * cfg["box"][2]), cfg, "packing p")
+
+
+def test_two_threads_run_the_same_shear_test(tiny, tmp_path):
+    """YADE's own threads (-j 2, the benchmark's 2-core contender): the same sim, recorded as run on 2
+    threads; positions agree to round-off of the parallel force sums (the summation order differs)."""
+    meta = engine.simulate(shear.SCENE, tiny["row"], tiny["meta"].packing, tmp_path / "raw", threads=2)
+    assert meta.run.threads == 2 and " -j 2 " in meta.run.command
+    assert meta.run.window_seconds > 0 and meta.run.runup_seconds is not None
+    two = convert.trajectory(tmp_path / "raw")
+    soil = two.species == shear.SOIL
+    motion = np.abs(tiny["traj"].position[-1, soil] - tiny["traj"].position[0, soil]).max()
+    difference = np.abs(two.position[:, soil] - tiny["traj"].position[:, soil]).max()
+    assert difference < 1e-3 * motion
+    assert np.array_equal(two.position[:, ~soil], tiny["traj"].position[:, ~soil])
