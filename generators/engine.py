@@ -79,9 +79,9 @@ def perturbed(packing: dem.Particles, kinematic_species: tuple[int, ...], scale:
 def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: int = 1,
              threads: int = 1) -> record.SimRecord:
     """Run sweep row ``row`` from its settled packing in the row's engine (LAMMPS: on ``ranks`` MPI ranks; YADE:
-    on ``threads`` threads); raw output, the engine's own input and log, and run.json in ``out_dir``. A blow-up raises BlowUp naming the
-    sim, frame and cause. A row with ``perturbation`` > 0 starts from the packing perturbed by that many radii
-    (:func:`perturbed`)."""
+    on ``threads`` threads); raw output, the engine's own input and log, and run.json in ``out_dir``. A blow-up
+    raises BlowUp naming the sim, frame and cause. A row with ``perturbation`` > 0 starts from the packing
+    perturbed by that many radii (:func:`perturbed`)."""
     out_dir = Path(out_dir)
     packing = read_packing(packing_dir)
     if row.get("perturbation"):
