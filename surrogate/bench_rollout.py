@@ -124,7 +124,8 @@ def frames_of(rollouts: list[Rollout]) -> int:
 
 
 def time_variants(chosen: list[Variant], repeats: int, clock: Callable[[], float]) -> pd.DataFrame:
-    """Per variant: the median seconds per rollout frame, the median shares of a step, the warm-up's wall time."""
+    """Per variant: the median seconds per rollout frame (and the fastest and slowest repeat), the median
+    shares of a step, the warm-up's wall time and the network's edges per step."""
     warmup = {}
     for v in chosen:
         t0 = time.perf_counter()
@@ -147,7 +148,9 @@ def time_variants(chosen: list[Variant], repeats: int, clock: Callable[[], float
         graph = statistics.median(s[0] for s in shares[v.name])
         network = statistics.median(s[1] for s in shares[v.name])
         rows.append({"variant": v.name, "lever": v.lever, "batch": v.batch, "radius": v.radius,
-                     "seconds_per_frame": statistics.median(per_frame[v.name]), "graph_share": graph,
+                     "seconds_per_frame": statistics.median(per_frame[v.name]),
+                     "seconds_per_frame_min": min(per_frame[v.name]), "seconds_per_frame_max": max(per_frame[v.name]),
+                     "graph_share": graph,
                      "network_share": network, "rest_share": 1.0 - graph - network, "warmup_s": warmup[v.name],
                      "edges_per_step": edges[v.name]})
     table = pd.DataFrame(rows)
@@ -176,12 +179,13 @@ def radius_columns(table: pd.DataFrame, sims: list[Sim], chosen: list[Variant]) 
 
 def markdown(table: pd.DataFrame) -> str:
     """The table as Markdown, times in ms per frame."""
-    lines = ["| variant | ms per frame | ratio | graph / network / rest (%) | warm-up (s) | edges per step "
+    lines = ["| variant | ms per frame (min-max) | ratio | graph / network / rest (%) | warm-up (s) | edges per step "
              "| contact-miss rate | edges per particle |", "| --- " * 8 + "|"]
     for row in table.itertuples():
         miss = "" if pd.isna(row.contact_miss_rate) else f"{100 * row.contact_miss_rate:.2f} %"
         per_particle = "" if pd.isna(row.edges_per_particle) else f"{row.edges_per_particle:.1f}"
-        lines.append(f"| {row.variant} | {1e3 * row.seconds_per_frame:.3f} | {row.ratio_to_reference:.2f}x vs "
+        lines.append(f"| {row.variant} | {1e3 * row.seconds_per_frame:.3f} ({1e3 * row.seconds_per_frame_min:.2f}-"
+                     f"{1e3 * row.seconds_per_frame_max:.2f}) | {row.ratio_to_reference:.2f}x vs "
                      f"{row.reference} | {100 * row.graph_share:.0f} / {100 * row.network_share:.0f} / "
                      f"{100 * row.rest_share:.0f} | {row.warmup_s:.1f} | {row.edges_per_step:.0f} | {miss} "
                      f"| {per_particle} |")
