@@ -11,8 +11,11 @@ APT_STAMP := $(VENV)/.graphdem-apt
 TARGET ?= results/slide/metrics.csv
 CORES ?= 2
 # Debian packages, each with the command that tells it is there (-: none, dpkg decides): the DEM engines, venv,
-# and Chromium with its WebDriver for the test that renders snakemake --report in a browser.
-APT_PACKAGES := lammps:lmp yade:yade python3-venv:- chromium:chromium chromium-driver:chromedriver
+# Chromium with its WebDriver for the test that renders snakemake --report in a browser, and a C++ compiler with
+# the Python headers for torch.compile's CPU kernels (runtime switch compile; python3-config names the headers of
+# the python3 the venv is made from).
+APT_PACKAGES := lammps:lmp yade:yade python3-venv:- chromium:chromium chromium-driver:chromedriver g++:g++ \
+  python3-dev:python3-config
 
 .PHONY: install run test lint clean-results
 

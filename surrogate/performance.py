@@ -11,7 +11,9 @@ the same way on the same test sims, scored with the same metrics against the dat
   with sizes (``latent``, ``hidden``, ``message_passing``) is an untrained model of that size,
   timed only (its error is not reported) on the data's own windows (one-step predictions on the
   true graphs, so that it sees the graphs a trained model would). One untimed warm-up rollout per
-  sim comes first.
+  sim comes first. ``batch: N`` rolls the sims out N at a time as one disjoint graph per step
+  (:func:`surrogate.batched.rollout_batch`; the sims repeated in turn to fill every batch), each
+  sim's time being its batch's time / N; ``compile: true`` is the runtime switch.
 
 Every contender's time is the median of ``repeats`` runs per sim, averaged over the sims.
 Particle-frames per second count moving particles times predicted frames, summed over the sims,
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import resource
 import statistics
 import tempfile
@@ -34,13 +37,16 @@ import torch
 from generators import blowup, convert, engine, h5md, scenes
 from surrogate import checkpoint, devices
 from surrogate import runtime as rt
+from surrogate.batched import rollout_batch
 from surrogate.evaluate import MSE, score, summarise
-from surrogate.rollout import rollout
-from surrogate.samples import load_sim
+from surrogate.rollout import Rollout, rollout
+from surrogate.samples import Sim, load_sim
 from surrogate.simulator import LearnedSimulator
 
 SIZE_KEYS = ("latent", "hidden", "message_passing")
-SURROGATE_EXECUTION = ("threads",)          # torch threads of this contender (default: performance.threads)
+# how a surrogate contender runs, not what it computes: torch threads (default: performance.threads), and the
+# sims rolled out together (default 1)
+SURROGATE_EXECUTION = ("threads", "batch")
 DEM_KEYS = ("dt_safety", "dt_factor", "stiffness_factor", "cores")
 
 
@@ -161,17 +167,17 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
         simulator = LearnedSimulator(meta["stats"], {**meta["model"], **sizes}).to(devices.of(simulator)).eval()
     simulator = rt.apply(copy.deepcopy(simulator), runtime)
     props = list(meta["model"].get("properties") or [])
+    batch = int(variant.get("batch", 1))
+    trajs = [h5md.read(path) for path in truths]
+    sims = [load_sim(path, meta["stats"], props, traj) for path, traj in zip(truths, trajs, strict=True)]
     seconds, scored, blown, work, graph_share, edges, particles = [], [], [], [], [], [], []
-    for path in truths:
-        traj = h5md.read(path)
-        sim = load_sim(path, meta["stats"], props, traj)
-        rollout(simulator, sim, runtime=runtime, forced=not trained)                # warm-up, untimed
-        runs = [rollout(simulator, sim, runtime=runtime, forced=not trained) for _ in range(repeats)]
-        if runs[0].first_nonfinite is not None:
-            blown.append(f"{sim.id} non-finite from frame {runs[0].first_nonfinite}")
-        seconds.append(statistics.median(r.seconds for r in runs))
-        graph_share.append(statistics.median(r.seconds_graph / r.seconds for r in runs))
-        timing = runs[0].timing
+    for traj, sim, (run, median, share) in zip(trajs, sims, timed_rollouts(simulator, sims, runtime, not trained,
+                                                                          repeats, batch), strict=True):
+        if run.first_nonfinite is not None:
+            blown.append(f"{sim.id} non-finite from frame {run.first_nonfinite}")
+        seconds.append(median)
+        graph_share.append(share)
+        timing = run.timing
         edges.append(timing["edges_per_step"])
         frames = sim.n_frames - simulator.history
         particles.append(traj.n_particles)
@@ -179,7 +185,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
                      gflop_per_step({**meta["model"], **sizes}, sim.position.shape[-1], len(props),
                                     timing["nodes_per_step"], timing["edges_per_step"], runtime.split_edge_mlp,
                                     timing["decoded_per_step"])))
-        scored.append((sim.id, traj, runs[0].position))
+        scored.append((sim.id, traj, run.position))
     n_frames = sum(f for f, _, _ in work)
     gflop = sum(f * g for f, _, g in work)
     out = {"contender": name, "kind": "surrogate", "settings": json.dumps(variant, sort_keys=True),
@@ -187,6 +193,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "seconds_per_rollout": float(np.mean(seconds)), "seconds_per_frame": sum(seconds) / n_frames,
            "particle_frames_per_second": sum(f * m for f, m, _ in work) / sum(seconds),
            "peak_rss_mb": _peak_rss_mb(), "threads": threads, "cores": threads, "device": str(devices.of(simulator)),
+           "batch": batch,
            "particles": float(np.mean(particles)),
            "seconds_per_particle_step": float(np.mean([s / (f * n) for s, (f, _, _), n
                                                        in zip(seconds, work, particles, strict=True)])),
@@ -197,6 +204,35 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
     if trained:
         out.update(_scores(name, scored, simulator.history, body_displacement))
     return out
+
+
+def timed_rollouts(simulator: LearnedSimulator, sims: list[Sim], runtime: rt.Runtime, forced: bool, repeats: int,
+                   batch: int = 1) -> list[tuple[Rollout, float, float]]:
+    """Per sim: its first timed rollout, the median of its ``repeats`` times per rollout and of its
+    graph-building share. Alone (``batch`` 1) every sim has an untimed warm-up rollout first. With
+    ``batch`` N, the sims are repeated in turn to fill groups of N, each group rolled out together
+    (:func:`surrogate.batched.rollout_batch`, one warm-up first); a sim's time is its group's wall time / N."""
+    if batch < 1:
+        raise ValueError(f"surrogate contender: batch = {batch}, must be at least 1")
+    if batch == 1:
+        out = []
+        for sim in sims:
+            rollout(simulator, sim, runtime=runtime, forced=forced)                    # warm-up, untimed
+            runs = [rollout(simulator, sim, runtime=runtime, forced=forced) for _ in range(repeats)]
+            out.append((runs[0], statistics.median(r.seconds for r in runs),
+                        statistics.median(r.seconds_graph / r.seconds for r in runs)))
+        return out
+    members = [sims[i % len(sims)] for i in range(batch * math.ceil(len(sims) / batch))]
+    found: dict[int, tuple[Rollout, float, float]] = {}
+    for start in range(0, len(members), batch):
+        group = members[start:start + batch]
+        rollout_batch(simulator, group, runtime, forced=forced)                        # warm-up, untimed
+        runs = [rollout_batch(simulator, group, runtime, forced=forced) for _ in range(repeats)]
+        median = statistics.median(r[0].timing["batch_seconds"] for r in runs) / batch
+        for j in range(batch):
+            share = statistics.median(r[j].seconds_graph / r[j].timing["batch_seconds"] for r in runs)
+            found.setdefault((start + j) % len(sims), (runs[0][j], median, share))
+    return [found[i] for i in range(len(sims))]
 
 
 def gflop_per_step(model: dict, dim: int, n_props: int, nodes: float, edges: float, split: bool,
@@ -275,7 +311,8 @@ def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds
     table["matched_dem"] = ""
     table["matched_dem_by_mse"] = ""
     dem = table[(table["kind"] == "dem") & table["mse"].notna() & table["stable"].astype(bool)]
-    table.loc[surrogate, "break_even_substeps"] = table.loc[surrogate, "seconds_per_frame"] / ref["seconds_per_dem_step"]
+    table.loc[surrogate, "break_even_substeps"] = (table.loc[surrogate, "seconds_per_frame"]
+                                                   / ref["seconds_per_dem_step"])
     if not dem.empty:
         table.loc[surrogate, "break_even_substeps_fastest"] = (table.loc[surrogate, "seconds_per_frame"]
                                                                / dem["seconds_per_dem_step"].min())

@@ -30,6 +30,7 @@ class Rollout:
     seconds: float = 0.0                 # wall time of the predicted frames
     seconds_graph: float = 0.0           # of which building the radius graph
     timing: dict = field(default_factory=dict)
+    seconds_network: float = 0.0         # of which the network's forward pass (on a GPU: the time to queue it)
 
     @property
     def n_predicted(self) -> int:
@@ -38,10 +39,31 @@ class Rollout:
         return end - self.history
 
 
-def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, kinematic_next: torch.Tensor,
-                  runtime: Runtime, counts: dict) -> tuple[torch.Tensor, float]:
-    """One step with sleeping particles and isolated unpredicted particles left out (runtime switches)."""
+@dataclass
+class Step:
+    """One sim's network input of one step, and what turns the network's output into its next frame."""
+
+    graph: Graph                    # what the network sees (pruned, when the runtime prunes)
+    decode: torch.Tensor | None     # graph nodes decoded and integrated; None: every node (the unreduced graph)
+    index: torch.Tensor             # particle of every graph node
+    rest: torch.Tensor              # [N, D] next positions where nothing is predicted (kinematic: the data's)
+    seconds_graph: float            # wall time of building it
+
+
+def prepare_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, kinematic_next: torch.Tensor,
+                 runtime: Runtime, props: torch.Tensor | None, counts: dict) -> Step:
+    """The graph of one step of ``sim`` under ``runtime`` (on the window's last frame), with sleeping
+    particles and isolated unpredicted ones left out when the runtime switches say so; ``counts`` gets
+    its nodes, edges, decoded and sleeping particles added."""
     t0 = time.perf_counter()
+    if not (runtime.prune_isolated or runtime.sleep_speed is not None):
+        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props, runtime.skip_kinematic_pairs)
+        seconds = time.perf_counter() - t0
+        n = graph.types.numel()
+        counts["nodes"] += n
+        counts["edges"] += graph.edge_index.shape[1]
+        counts["decoded"] += n
+        return Step(graph, None, torch.arange(n, device=window.device), kinematic_next, seconds)
     last = window[-1]
     kinematic = sim.kinematic
     static = kinematic.clone()
@@ -57,23 +79,28 @@ def _reduced_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, k
         static = kinematic | resting
         counts["asleep"] += int(resting.sum())
     edges = radius_graph(last, simulator.radius, static.cpu().numpy()).to(last.device)
-    graph = Graph(window, sim.types, static, edges, None if sim.props is None else sim.props.to(window.dtype))
+    graph = Graph(window, sim.types, static, edges, props)
     if runtime.prune_isolated:
         graph, index = prune_isolated(graph)
     else:
         index = torch.arange(len(static), device=static.device)
-    sub_edges = graph.edge_index
-    seconds_graph = time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
     moving = (~graph.kinematic).nonzero().squeeze(1)       # only these are decoded and integrated
     counts["nodes"] += len(index)
-    counts["edges"] += sub_edges.shape[1]
+    counts["edges"] += graph.edge_index.shape[1]
     counts["decoded"] += len(moving)
-    with runtime.autocast(last.device):
-        acceleration = simulator(graph, decode=moving).to(window.dtype)
-    predicted = simulator.integrate(graph.window[:, moving], acceleration)
-    nxt = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
-    nxt[index[moving]] = predicted
-    return nxt, seconds_graph
+    rest = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
+    return Step(graph, moving, index, rest, seconds)
+
+
+def finish_step(simulator: LearnedSimulator, step: Step, acceleration: torch.Tensor) -> torch.Tensor:
+    """[N, D] next positions of the step's sim from the network's acceleration of its decoded nodes."""
+    if step.decode is None:
+        return torch.where(step.graph.kinematic.unsqueeze(-1), step.rest,
+                           simulator.integrate(step.graph.window, acceleration))
+    nxt = step.rest
+    nxt[step.index[step.decode]] = simulator.integrate(step.graph.window[:, step.decode], acceleration)
+    return nxt
 
 
 def keep_in_domain(position: torch.Tensor, moving: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor,
@@ -116,37 +143,36 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     device = devices.of(simulator)
     sim = samples.to_device(sim, device)
     dtype = runtime.network_dtype if runtime is not None else torch.float32
-    reduced = runtime is not None and (runtime.prune_isolated or runtime.sleep_speed is not None)
     positions = torch.full((total, *sim.position.shape[1:]), float("nan"), dtype=dtype, device=device)
     positions[:g] = sim.position[:g] if start is None else start.to(device)
     props = None if sim.props is None else sim.props.to(dtype)
-    counts = {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0}
+    counts = new_counts()
     moving = ~sim.kinematic
     first_bad = None
-    t_graph = 0.0
+    t_graph = t_network = 0.0
     start_clock = time.perf_counter()
     for t in range(g, total):
         window = sim.position[t - k:t].to(dtype) if forced else positions[t - k:t]
         # beyond the recorded window, kinematic particles stay where the data left them
         kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
-        if reduced:
-            nxt, seconds_graph = _reduced_step(simulator, sim, window, kinematic_next, runtime, counts)
-            t_graph += seconds_graph
-        else:
+        if runtime is None:
             t0 = time.perf_counter()
-            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props,
-                                runtime is None or runtime.skip_kinematic_pairs)
+            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props)
             t_graph += time.perf_counter() - t0
             counts["nodes"] += graph.types.numel()
             counts["edges"] += graph.edge_index.shape[1]
             counts["decoded"] += graph.types.numel()
-            if runtime is None:
-                nxt = simulator.step(graph, kinematic_next)
-            else:
-                with runtime.autocast(device):
-                    acceleration = simulator(graph).to(dtype)
-                nxt = torch.where(sim.kinematic.unsqueeze(-1), kinematic_next,
-                                  simulator.integrate(window, acceleration))
+            t0 = time.perf_counter()
+            nxt = simulator.step(graph, kinematic_next)
+            t_network += time.perf_counter() - t0           # the step's pruning and integration included
+        else:
+            step = prepare_step(simulator, sim, window, kinematic_next, runtime, props, counts)
+            t_graph += step.seconds_graph
+            t0 = time.perf_counter()
+            with runtime.autocast(device):
+                acceleration = simulator(step.graph, decode=step.decode).to(dtype)
+            t_network += time.perf_counter() - t0
+            nxt = finish_step(simulator, step, acceleration)
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
@@ -156,9 +182,20 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
+    return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, step_timing(counts, steps), t_network)
+
+
+def new_counts() -> dict:
+    """Zeroed per-rollout counters: sleeping particles, graph nodes, edges and decoded nodes summed over the
+    steps, and particles put back into the box."""
+    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0}
+
+
+def step_timing(counts: dict, steps: int) -> dict:
+    """A rollout's ``timing``: every count per computed step, and the particle-steps put back into the box."""
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
-    timing["clamped"] = counts["clamped"]                  # particle-steps put back into the box
-    return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, timing)
+    timing["clamped"] = counts["clamped"]
+    return timing
 
 
 def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, history: int) -> np.ndarray:

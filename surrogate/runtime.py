@@ -24,7 +24,14 @@ one's measured effect):
   there like on a rigid, perfectly inelastic wall (its velocity normal to the face, a position
   difference, becomes zero). The model has boundary features but no hard boundary; without this a
   long rollout can drift out of the domain (docs/performance.md). The rollout counts the particles
-  put back (``clamped_per_step``), so the correction is never hidden.
+  put back (``clamped_per_step``), so the correction is never hidden;
+* ``compile`` (exact to float32 rounding): the simulator's forward pass (features, constructor,
+  processor, generator; not the graph building) runs through ``torch.compile`` with dynamic shapes,
+  since the node and edge counts change every step. On the CPU, inductor generates C++ kernels and
+  needs a C++ compiler and the Python headers (the Makefile's apt step). The first call of every new
+  input kind (dtype, with or without properties or decoded subsets) compiles, which takes seconds
+  to a minute: it pays only over many rollouts in one process (``python -m surrogate.bench_rollout``
+  measures both).
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ class Runtime:
     precision: str
     sleep_speed: float | None
     keep_in_domain: bool
+    compile: bool
 
     def __post_init__(self):
         if self.precision not in PRECISIONS:
@@ -79,8 +87,13 @@ class Runtime:
 
 
 def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:
-    """Set the switches that live in the modules (edge MLP form, float64 weights); returns it."""
+    """Set the switches that live in the modules (edge MLP form, float64 weights, a compiled forward pass);
+    returns it. Compiling is in place (``nn.Module.compile``: the weights and the state dict stay the same)."""
     for module in simulator.modules():
         if hasattr(module, "split_edge_mlp"):
             module.split_edge_mlp = runtime.split_edge_mlp
-    return simulator.to(runtime.network_dtype)
+    simulator = simulator.to(runtime.network_dtype)
+    if runtime.compile:
+        # dynamic: every step has other node and edge counts; a static compile would recompile each step
+        simulator.compile(dynamic=True)
+    return simulator

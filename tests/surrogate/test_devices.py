@@ -48,11 +48,11 @@ def test_with_gpus_auto_and_cuda_take_the_first_or_the_local_ranks(monkeypatch):
 @pytest.mark.filterwarnings("ignore:CUDA is not available:UserWarning")
 def test_bfloat16_autocast_follows_the_models_device_type():
     for kind in ("cpu", "cuda"):
-        context = runtime.Runtime(True, True, True, "bfloat16", None, False).autocast(torch.device(kind))
+        context = runtime.Runtime(True, True, True, "bfloat16", None, False, False).autocast(torch.device(kind))
         assert context.device == kind and context.fast_dtype == torch.bfloat16
         assert context._enabled == (kind == "cpu" or torch.cuda.is_available())    # torch turns it off without a GPU
-    assert not runtime.Runtime(True, True, True, "float32", None, False).autocast(torch.device("cpu"))._enabled
-    with runtime.Runtime(True, True, True, "bfloat16", None, False).autocast("cpu"):
+    assert not runtime.Runtime(True, True, True, "float32", None, False, False).autocast(torch.device("cpu"))._enabled
+    with runtime.Runtime(True, True, True, "bfloat16", None, False, False).autocast("cpu"):
         assert torch.is_autocast_enabled("cpu")
         assert torch.nn.functional.linear(torch.ones(2, 3), torch.ones(4, 3)).dtype == torch.bfloat16
     assert devices.of(torch.nn.Linear(2, 2)) == torch.device("cpu")

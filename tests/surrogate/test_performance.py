@@ -52,7 +52,8 @@ def test_dem_contender_settings_scale_the_step_and_the_stiffness():
     assert performance.dem_row(row, {"dt_safety": 0.5}) == {**row, "dt_safety": 0.5}
     assert performance.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
     assert performance.dem_row(row, {"cores": 2, "dt_safety": 0.1}) == {**row, "dt_safety": 0.1}  # cores: not physics
-    with pytest.raises(ValueError, match=r"unknown keys \['dt'\]; allowed: dt_safety, dt_factor, stiffness_factor, cores"):
+    allowed = "dt_safety, dt_factor, stiffness_factor, cores"
+    with pytest.raises(ValueError, match=rf"unknown keys \['dt'\]; allowed: {allowed}"):
         performance.dem_row(row, {"dt": 1e-4})
     with pytest.raises(ValueError, match="not both"):
         performance.dem_row(row, {"dt_factor": 2, "dt_safety": 0.1})
@@ -107,3 +108,33 @@ def test_operation_count_matches_the_article_size_model_by_hand():
     assert plain == pytest.approx(2 * (10 * updater + constructors + generator) / 1e9)
     split = performance.gflop_per_step(model, 2, 0, nodes, edges, split=True)
     assert split == pytest.approx(plain - 2 * 10 * (edges * 256 * 128 - 2 * nodes * 128 * 128) / 1e9)
+
+
+@pytest.mark.engine
+def test_a_batched_surrogate_contender_scores_as_the_unbatched_one(tiny_dataset, tmp_path):
+    import json
+
+    import torch
+
+    from surrogate import checkpoint, runtime
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    path = tmp_path / "best.pt"
+    checkpoint.save(path, {"model": simulator.state_dict(), "json": {"stats": stats, "model": tiny_dataset["model"]}})
+    table = tiny_dataset["split_table"]
+    truths = list(table.loc[table["split"] != "train", "path"])                   # 2 sims: valid and test
+    base = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
+                           sleep_speed=None, keep_in_domain=True, compile=False)
+    alone = performance.surrogate_contender("alone", {}, path, base, truths, repeats=1, threads=1)
+    for batch in (2, 3):             # 3: more than the sims, so they are repeated to fill the batch
+        together = performance.surrogate_contender("together", {"batch": batch}, path, base, truths, repeats=1,
+                                                   threads=1)
+        assert alone["batch"] == 1 and together["batch"] == batch and together["sims"] == alone["sims"] == 2
+        assert together["mse"] == pytest.approx(alone["mse"], rel=1e-5)
+        assert together["edges_per_step"] == pytest.approx(alone["edges_per_step"])
+        assert together["gflop_per_frame"] == pytest.approx(alone["gflop_per_frame"])
+        assert 0 < together["seconds_per_rollout"] < float("inf")
+    with pytest.raises(ValueError, match="batch = 0"):
+        performance.timed_rollouts(simulator, [], base, False, 1, batch=0)

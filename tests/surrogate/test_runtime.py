@@ -12,7 +12,7 @@ from surrogate import rollout, runtime
 pytestmark = pytest.mark.engine
 
 PLAIN = runtime.Runtime(split_edge_mlp=False, skip_kinematic_pairs=True, prune_isolated=False, precision="float64",
-                        sleep_speed=None, keep_in_domain=False)
+                        sleep_speed=None, keep_in_domain=False, compile=False)
 
 
 def prepared(simulator, rt):
@@ -88,3 +88,20 @@ def test_kinematic_pairs_add_edges_and_change_the_input_of_a_model_trained_witho
     assert not np.allclose(result.position, reference.position)
     with pytest.raises(ValueError, match="need runtime.skip_kinematic_pairs = true"):
         replace(PLAIN, skip_kinematic_pairs=False, prune_isolated=True)
+
+
+def test_compiled_rollout_equals_the_eager_one_to_float32_rounding(untrained):
+    simulator, sim = untrained
+    from torch._dynamo.utils import counters
+    for base in (replace(PLAIN, precision="float32", keep_in_domain=True),                 # whole graph decoded
+                 replace(PLAIN, precision="float32", split_edge_mlp=True, prune_isolated=True)):   # a subset
+        compiled = replace(base, compile=True)
+        eager = rollout.rollout(prepared(simulator, base), sim, runtime=base)
+        before = counters["stats"]["unique_graphs"]
+        result = rollout.rollout(prepared(simulator, compiled), sim, runtime=compiled)
+        assert counters["stats"]["unique_graphs"] > before                    # it did compile the forward pass
+        assert result.first_nonfinite is None and result.timing == eager.timing
+        moved = np.abs(eager.position[-1] - eager.position[simulator.history - 1]).max()
+        assert moved > 1e-3                                                   # the rollout predicts motion
+        np.testing.assert_allclose(result.position, eager.position, rtol=1e-5, atol=1e-5 * moved)
+    assert runtime.Runtime.from_config({**PLAIN.as_dict(), "compile": True}).compile

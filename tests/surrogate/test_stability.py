@@ -12,7 +12,7 @@ from surrogate.rollout import keep_in_domain, rollout
 pytestmark = pytest.mark.engine
 
 RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
-                     sleep_speed=None, keep_in_domain=False)
+                     sleep_speed=None, keep_in_domain=False, compile=False)
 
 
 def test_error_growth_is_the_geometric_mean_ratio_per_step():

@@ -1,0 +1,71 @@
+"""The contact-miss rate of a connectivity radius, by hand and against brute force."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from surrogate import contacts
+
+# Three discs of radius 1 in 2D: A and B move, C is kinematic. From frame 0 to 1, B comes from 5 m to
+# 1.5 m of A (a contact) and C from 3 m to 1.8 m of A (a contact); B and C stay 2.34 m apart (none).
+THREE = np.array([[[0.0, 0.0], [5.0, 0.0], [0.0, 3.0]],
+                  [[0.0, 0.0], [1.5, 0.0], [0.0, 1.8]]])
+RADII = np.ones(3)
+C_KINEMATIC = np.array([False, False, True])
+
+
+def test_three_discs_by_hand():
+    assert contacts.contact_misses(THREE, RADII, 4.0, C_KINEMATIC) == (1, 2)       # A-B was 5 m apart: missed
+    assert contacts.contact_miss_rate(THREE, RADII, 4.0, C_KINEMATIC) == 0.5
+    assert contacts.contact_miss_rate(THREE, RADII, 6.0, C_KINEMATIC) == 0.0       # both pairs within 6 m
+    assert contacts.contact_miss_rate(THREE, RADII, 3.0, C_KINEMATIC) == 1.0       # 3 m is not closer than 3 m
+    # A kinematic as well: the A-C contact joins two kinematic particles and does not count
+    assert contacts.contact_misses(THREE, RADII, 4.0, np.array([True, False, True])) == (1, 1)
+    # larger discs: B-C touch at frame 1 (2.34 m < 1.2 + 1.2), 5.83 m apart at frame 0
+    assert contacts.contact_misses(THREE, np.full(3, 1.2), 4.0, C_KINEMATIC) == (2, 3)
+    assert math.isnan(contacts.contact_miss_rate(THREE[:1], RADII, 4.0, C_KINEMATIC))   # one frame: no contact
+
+
+def test_edges_per_particle_by_hand():
+    # R = 4: frame 0 has the pair A-C, frame 1 all three pairs; both directions plus 3 self edges
+    assert contacts.edges_per_particle(THREE, 4.0, C_KINEMATIC) == pytest.approx((5 + 9) / 2 / 3)
+    # A and C kinematic: their pair has no edge
+    assert contacts.edges_per_particle(THREE, 4.0, np.array([True, False, True])) == pytest.approx((3 + 7) / 2 / 3)
+
+
+def brute_force(position, radius, r_graph, kinematic):
+    missed = total = 0
+    for t in range(len(position) - 1):
+        for i, j in itertools.combinations(range(position.shape[1]), 2):
+            if kinematic[i] and kinematic[j]:
+                continue
+            if np.linalg.norm(position[t + 1, i] - position[t + 1, j]) < radius[i] + radius[j]:
+                total += 1
+                missed += np.linalg.norm(position[t, i] - position[t, j]) >= r_graph
+    return missed, total
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_random_packings_against_brute_force(dim):
+    rng = np.random.default_rng(dim)
+    n, frames = 60, 6
+    start = rng.uniform(0, 6, size=(n, dim))
+    velocity = rng.normal(0, 0.4, size=(n, dim))
+    position = start + velocity * np.arange(frames)[:, None, None]
+    radius = rng.uniform(0.3, 0.6, size=n)
+    kinematic = rng.random(n) < 0.3
+    rates = []
+    for r_graph in (0.5, 1.0, 1.5, 3.0):
+        missed, total = contacts.contact_misses(position, radius, r_graph, kinematic)
+        assert (missed, total) == brute_force(position, radius, r_graph, kinematic)
+        rates.append(missed / total)
+    assert total > 20 and rates[0] > 0.5 and rates[-1] < rates[0]
+    assert rates == sorted(rates, reverse=True)                     # a larger R misses fewer contacts
+    edges = [contacts.edges_per_particle(position, r, kinematic) for r in (1.0, 2.0)]
+    for r, value in zip((1.0, 2.0), edges, strict=True):
+        expected = np.mean([(n + 2 * sum(1 for i, j in itertools.combinations(range(n), 2)
+                                         if not (kinematic[i] and kinematic[j])
+                                         and np.linalg.norm(frame[i] - frame[j]) < r)) / n for frame in position])
+        assert value == pytest.approx(expected)
