@@ -103,6 +103,10 @@ def test_performance_stage_outputs(workdir):
         matched = table.loc[main["matched_dem"]]
         assert matched["mse"] <= main["mse"] and all(matched[c] >= main[c] for c in table if c.startswith("acc_"))
     assert table.at["graphdem_2threads", "threads"] == 2
+    # the levers change the arithmetic, not the result: compiled and batched rollouts score as the plain one
+    for lever in ("compiled", "batch_4", "compiled_batch_8"):
+        assert table.at[lever, "mse"] == pytest.approx(main["mse"], rel=1e-4)
+    assert table.at["batch_4", "batch"] == 4
     assert (res / "plots" / "speedup_substeps.png").stat().st_size > 10_000
     # exact switches: same error with and without them
     assert table.at["no_skipping", "mse"] == pytest.approx(main["mse"], rel=1e-4)
