@@ -40,6 +40,11 @@ def max_overlap_fraction(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarra
     return float(overlaps.max()) if len(overlaps) else 0.0
 
 
+def _box(corner) -> str:
+    """A box corner as plain numbers, e.g. [-0.016, 0, 0.06]."""
+    return "[" + ", ".join(f"{float(v):g}" for v in np.asarray(corner, float)) + "]"
+
+
 def check_trajectory(sim: str, position: np.ndarray, radius: np.ndarray, kinematic: np.ndarray,
                      lower: np.ndarray, upper: np.ndarray, max_overlap: float) -> None:
     """Raise BlowUp at the first frame with a non-finite value, an escape or a large overlap."""
@@ -52,7 +57,7 @@ def check_trajectory(sim: str, position: np.ndarray, radius: np.ndarray, kinemat
         outside = np.any((x < lower) | (x > upper), axis=1)
         if outside.any():
             p = int(np.argmax(outside))
-            raise BlowUp(sim, frame, f"particle {p} left the domain {list(lower)}-{list(upper)} "
+            raise BlowUp(sim, frame, f"particle {p} left the domain {_box(lower)}-{_box(upper)} "
                                      f"(at {np.round(x[p], 3).tolist()})")
         frac = max_overlap_fraction(x, radius, kinematic)
         if frac > max_overlap:
