@@ -87,6 +87,7 @@ PROMISES = {
         {"tested_by": "tests/workflow/test_slurm.py"},
     "results/slide/benchmark.csv": {"builds": ({"slide"}, "performance")},
     "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
+    "results/slide/benchmark.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
     "results/shear/benchmark.csv": {"builds": ({"shear"}, "performance")},
     "results/shear/stability.csv": {"builds": ({"shear"}, "stability")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},

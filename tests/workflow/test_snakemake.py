@@ -14,7 +14,8 @@ from generators import config, h5md, scenes
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 TARGET = "results/slide/metrics.csv"
-SMALL = "slide={n_sims: 3, frames: 8, record_start: 0.5, settle_time: 4.0}"
+# performance.alone false: the ci run's contenders run side by side (their times are not looked at)
+SMALL = "slide={n_sims: 3, frames: 8, record_start: 0.5, settle_time: 4.0, performance: {alone: false}}"
 
 pytestmark = pytest.mark.engine
 
@@ -237,6 +238,23 @@ def test_every_registered_scene_plans_the_benchmark_and_stability_stages(tmp_pat
     assert jobs["performance_surrogate"] == len(cfg["performance"]["surrogate"])
     assert jobs["performance"] == jobs["stability_dem"] == jobs["stability_surrogate"] == jobs["stability"] == 1
     assert not (tmp_path / "results").exists()
+
+
+def test_timed_contenders_run_alone_unless_told_otherwise(tmp_path):
+    def threads(config):
+        proc = snakemake(tmp_path, "results/slide/performance/surrogate/graphdem.csv",
+                         "results/slide/performance/dem/dt_10pct_2cores.csv", "-n", "-c2", config=config)
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+        out = {}
+        for block in proc.stdout.split("\nrule ")[1:]:            # a dry run prints no threads line for 1
+            rule = block.split(":", 1)[0]
+            found = re.search(r"^    threads: (\d+)$", block.split("\n\n")[0], re.M)
+            if rule.startswith("performance_"):
+                out[rule] = int(found[1]) if found else 1
+        return out
+    assert threads(()) == {"performance_surrogate": 2, "performance_dem": 2}          # every core of -c2
+    side_by_side = threads(("slide={performance: {alone: false}}",))
+    assert side_by_side == {"performance_surrogate": 1, "performance_dem": 2}        # its own: 1 thread, 2 cores
 
 
 def test_a_run_at_another_scale_is_refused_before_anything_runs(tmp_path):

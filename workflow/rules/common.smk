@@ -419,6 +419,19 @@ def contender_json(kind: str):
     return changes
 
 
+def contender_threads(kind: str):
+    """Input function: the cores of a performance job. With performance.alone (the default) every core
+    the run has (capped by -c), so no two timings overlap; otherwise the contender's own: its cores (DEM)
+    or torch threads (surrogate)."""
+    def threads(wildcards) -> int:
+        perf = stage_config(wildcards.scene, "performance")
+        if perf["alone"]:
+            return 64
+        changes = perf[kind].get(wildcards.contender, {})
+        return int(changes.get("cores", 1)) if kind == "dem" else int(changes.get("threads", perf["threads"]))
+    return threads
+
+
 def contender_tables(wildcards) -> list[str]:
     b = stage_config(wildcards.scene, "performance")
     return [f"results/{wildcards.scene}/performance/{kind}/{name}.csv" for kind in ("dem", "surrogate")

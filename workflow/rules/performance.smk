@@ -1,5 +1,5 @@
 # Stage performance: run time against error (results/{scene}/benchmark.csv), for every registered scene. One job
-# per contender, each alone on the machine (threads = all cores, so no two timings overlap).
+# per contender, each alone on the machine (performance.alone: threads = all cores, so no two timings overlap).
 rule performance_dem:
     input:
         truth=timed_sims,
@@ -12,7 +12,7 @@ rule performance_dem:
         history=history_length,
         repeats=stage_setting("performance", "repeats"),
         body=body_displacement_arg,
-    threads: 64
+    threads: contender_threads("dem")
     log:
         "results/{scene}/logs/performance/dem_{contender}.log",
     benchmark:
@@ -36,7 +36,7 @@ rule performance_surrogate:
         threads=stage_setting("performance", "threads"),
         body=body_displacement_arg,
         device=device_arg,
-    threads: 64
+    threads: contender_threads("surrogate")
     resources:
         gpus=job_gpus,
     log:
