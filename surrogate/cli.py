@@ -133,9 +133,10 @@ def cmd_evaluate(args) -> None:
     tables, per_step, first = [], [], None
     for k in args.history:                   # one protocol per K, stacked (the `history` column tells them apart)
         table, steps, sims = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
-                                               body_displacement=args.body_displacement, threads=args.threads,
-                                               progress=not args.no_progress, split=split, split_note=note,
-                                               runtime=_runtime_config(args),
+                                               body_displacement=args.body_displacement, frames=args.frames,
+                                               ensemble_dir=args.ensemble,
+                                               threads=args.threads, progress=not args.no_progress, split=split,
+                                               split_note=note, runtime=_runtime_config(args),
                                                allow_other_scene=args.allow_other_scene, device=args.device)
         tables.append(table)
         per_step.append(steps)
@@ -147,7 +148,8 @@ def cmd_evaluate(args) -> None:
     name = str(sims[0].traj.parameters.get("dataset", scene))
     if args.table_html:
         from surrogate import metrics_table
-        metrics_table.write(args.out, args.table_html, f"{name}: Graph-DEM and constant velocity on the {split} sims")
+        metrics_table.write(args.out, args.table_html, f"{name}: Graph-DEM, constant velocity"
+                            + (" and the DEM ensemble" if args.ensemble else "") + f" on the {split} sims")
     if args.plots:
         nominal_time = scene == "solidgn"         # Solid-GN stores a nominal dt: frames are the honest axis
         ks = ", ".join(str(k) for k in args.history)
@@ -214,7 +216,7 @@ def cmd_performance_dem(args) -> None:
     rows = args.sims
     packings = [Path(args.packings) / row["packing"] for row in rows]
     result = performance.dem_contender(args.name, args.variant, args.scene, rows, packings, args.truth, args.history,
-                                     args.repeats, args.body_displacement)
+                                     args.repeats, args.body_displacement, frames=args.frames)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
 
@@ -223,7 +225,7 @@ def cmd_performance_surrogate(args) -> None:
     result = performance.surrogate_contender(args.name, args.variant, args.checkpoint,
                                            _runtime_config(args, required_by="performance-surrogate"), args.data,
                                            args.repeats, args.threads, body_displacement=args.body_displacement,
-                                           device=args.device)
+                                           frames=args.frames, device=args.device)
     _write_rows([result], args.out)
     print(json.dumps(result, indent=1, default=str))
 
@@ -293,7 +295,11 @@ def _runtime(args, simulator):
     return (simulator, None) if rt is None else (runtime.apply(simulator, rt), rt)
 
 def _body_displacement(p: argparse.ArgumentParser) -> None:
+    """The options of the scene metrics: the landslide body threshold and the article's frame set of Acc."""
     p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    p.add_argument("--frames", type=int, nargs="+", metavar="TAU",
+                   help="the predicted frames (tau = 1 is the first) the article-style Acc averages over, e.g. "
+                        "5 10 15 20 30 for the meteorite (article Table 2); default: every predicted frame")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -354,8 +360,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
                        description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
                                    "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
-                                   "where the scene is known, beside a constant-velocity baseline. The sims are "
-                                   "--data, or one split of a --splits table.")
+                                   "where the scene is known, beside a constant-velocity baseline and, with "
+                                   "--ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of "
+                                   "the test-set mean curve (acc_percent), beside the pooled one "
+                                   "(acc_pooled_percent). The sims are --data, or one split of a --splits table.")
     _checkpoint_and_data(p, data_required=False)
     p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
@@ -370,6 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--table-html", type=Path,
                    help="metrics CSV as an HTML table whose empty cells say n/a or undefined and why (the report's)")
     p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
+    p.add_argument("--ensemble", type=Path,
+                   help="folder of the DEM ensemble: <sim id>.h5 per sim, the sim rerun by its engine from a "
+                        "perturbed state; scored as the method dem_ensemble (the chaos floor)")
     _body_displacement(p)
     p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
     p.add_argument("--animate", help="sim id to animate (default: the first)")

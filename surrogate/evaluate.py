@@ -1,5 +1,6 @@
-"""Evaluation (docs/surrogate.md): rollout MSE and the scene metrics of truth, Graph-DEM and the
-constant-velocity baseline, computed by the same code, written to metrics.csv and
+"""Evaluation (docs/surrogate.md): rollout MSE and the scene metrics of truth, Graph-DEM, the
+constant-velocity baseline and, where given, the DEM ensemble (the same sims rerun by their engine from a
+perturbed state: the chaos floor), computed by the same code, written to metrics.csv and
 metrics_per_step.csv with the checkpoint, config and code version they came from."""
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from generators import h5md
 from generators.atomic import atomic_path
 from surrogate import checkpoint
 from surrogate.baseline import constant_velocity
-from surrogate.metrics import accuracy, of_scene
+from surrogate.metrics import accuracy, curve_accuracy, frame_list, of_scene, plausibility
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.runtime import Runtime
 from surrogate.runtime import apply as apply_runtime
@@ -28,14 +29,15 @@ from surrogate.samples import load_sim
 
 log = logging.getLogger("graphdem.evaluate")
 
-MODEL, BASELINE = "graphdem", "constant_velocity"
+MODEL, BASELINE, ENSEMBLE = "graphdem", "constant_velocity", "dem_ensemble"
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
 
 
 @dataclass
 class Evaluated:
-    """One test sim: its truth and the two predictions, all [T, N, D]."""
+    """One test sim: its truth and the predictions (Graph-DEM, constant velocity, the DEM ensemble), all
+    [T, N, D]."""
 
     id: str
     traj: h5md.Trajectory
@@ -112,6 +114,20 @@ def read_rollout(path: Path, sha: str, history: int) -> h5md.Trajectory:
     return traj
 
 
+def read_ensemble(path: Path, traj: h5md.Trajectory) -> np.ndarray:
+    """The DEM ensemble member of a sim: the same sweep row rerun from a perturbed packing, on the same frames."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no DEM ensemble run of this sim (the ensemble stage makes one per test sim)")
+    member = h5md.read(path)
+    if member.position.shape != traj.position.shape:
+        raise ValueError(f"{path}: shape {member.position.shape} differs from the sim's {traj.position.shape}")
+    if not np.allclose(member.time, traj.time, rtol=1e-9, atol=0.0):
+        raise ValueError(f"{path}: its frames are recorded at other times than the sim's")
+    if not np.array_equal(member.kinematic, traj.kinematic) or not np.array_equal(member.species, traj.species):
+        raise ValueError(f"{path}: its particles (species or kinematic mask) differ from the sim's")
+    return np.asarray(member.position, np.float64)
+
+
 def blown_up_from(prediction: np.ndarray, traj: h5md.Trajectory, history: int) -> int | None:
     """The first predicted frame at which the rollout has blown up: a moving particle non-finite, or farther
     outside the box than the box is long on that axis (no granular flow goes there); None if it never does."""
@@ -146,6 +162,7 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
     cls = of_scene(scene)
     metrics = cls.for_trajectory(traj, body_displacement) if cls is not None else None
     truth_values = metrics(truth) if metrics else {}
+    truth_plausibility = plausibility.of_trajectory(truth, traj) if metrics else {}
     rows = []
     for method, prediction in predictions.items():
         blown = blown_up_from(prediction, traj, history)
@@ -159,17 +176,24 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
                                       values[history:], history, blown))
             for name, values in metrics.compare(prediction, truth).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history, blown))
+            for name, values in plausibility.of_trajectory(prediction, traj).items():
+                rows.append(_per_step(scene, method, sim, name, traj.time, truth_plausibility[name][history:],
+                                      values[history:], history, blown))
     return rows
 
 
 def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
-             body_displacement: float | None = None, threads: int = 1, progress: bool = True,
+             body_displacement: float | None = None, frames: list[int] | None = None,
+             ensemble_dir: Path | None = None, threads: int = 1,
+             progress: bool = True,
              split: str = "test", split_note: str = "", runtime: Runtime | None = None,
              allow_other_scene: bool = False,
              device: str = "cpu") -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
-    ``split`` and ``split_note`` name the split the sims come from in every row written; ``runtime``
+    ``ensemble_dir`` holds the DEM ensemble, ``<sim id>.h5`` per sim, scored as a third method.
+    ``frames``: the taus of the article-style Acc (every predicted frame when None). ``split`` and ``split_note``
+    name the split the sims come from in every row written; ``runtime``
     sets the switches of rollouts made here (:mod:`surrogate.runtime`), on ``device``
     (:mod:`surrogate.devices`).
     """
@@ -200,8 +224,11 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
             seconds = result.seconds / max(result.n_predicted, 1)
         truth = np.asarray(traj.position, np.float64)
         baseline = constant_velocity(truth, traj.kinematic, history)
-        entry = Evaluated(sim.id, traj, truth, {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None},
-                          seconds)
+        predictions, nonfinite = {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None}
+        if ensemble_dir is not None:
+            predictions[ENSEMBLE] = read_ensemble(Path(ensemble_dir) / f"{sim.id}.h5", traj)
+            nonfinite[ENSEMBLE] = None
+        entry = Evaluated(sim.id, traj, truth, predictions, nonfinite, seconds)
         if bad is not None:
             log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
         sims.append(entry)
@@ -209,7 +236,7 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
     if not sims:
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)
-    table = summarise(steps)
+    table = summarise(steps, frames)
     timing = pd.DataFrame([{"scene": table["scene"].iloc[0], "method": MODEL, "metric": SECONDS, "sim": "all",
                             "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])),
                             "n_sims": len(sims)}])
@@ -226,8 +253,12 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
     return table, steps, sims
 
 
-def summarise(steps: pd.DataFrame) -> pd.DataFrame:
-    """metrics.csv rows: per method and metric over all sims (``sim = all``), plus rollout MSE per sim."""
+def summarise(steps: pd.DataFrame, frames: list[int] | None = None) -> pd.DataFrame:
+    """metrics.csv rows: per method and metric over all sims (``sim = all``), plus rollout MSE per sim.
+
+    ``acc_percent`` is the article's Acc, of the test-set mean curve over the taus ``frames`` (every predicted
+    frame when None; the taus used in ``acc_frames``); ``acc_pooled_percent`` the same ratio pooled over every
+    (sim, frame) pair (:mod:`surrogate.metrics.accuracy`)."""
     rows = []
     order = list(dict.fromkeys(steps["metric"]))
     for (method, metric), group in steps.groupby(["method", "metric"], sort=False):
@@ -244,13 +275,20 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
                 rows.append({**base, "sim": sim, "mse": float(value), "mean_prediction": float(value),
                              "n_sims": 1, "n_frames": int((group["sim"] == sim).sum()),
                              "n_blown_up": int(sim in blown_sims), "blown_up_sims": sim if sim in blown_sims else ""})
+        elif metric in plausibility.AGGREGATE:
+            rows.append({**base, "sim": "all", **_plausibility(metric, group, frames, bool(blown_sims))})
         elif group["truth"].notna().any():
             truth, prediction = group["truth"].to_numpy(), group["prediction"].to_numpy()
-            acc, left_out = accuracy(truth, prediction)
-            acc = float("nan") if blown_sims else acc       # a blown-up rollout has no accuracy, only its flag
-            kept = np.isfinite(truth) & (truth != 0)          # the frames Acc averages over
-            rows.append({**base, "sim": "all", "acc_percent": acc, "mean_truth": float(truth[kept].mean()),
-                         "mean_prediction": float(prediction[kept].mean()), "n_frames_left_out": left_out})
+            pooled, left_out = accuracy(truth, prediction)
+            curve = curve_accuracy(group["tau"].to_numpy(), truth, prediction, frames)
+            # a blown-up rollout has no accuracy, only its flag
+            acc, pooled = (float("nan"), float("nan")) if blown_sims else (curve.acc, pooled)
+            kept = np.isfinite(truth) & (truth != 0)          # the pairs the pooled Acc averages over
+            rows.append({**base, "sim": "all", "acc_percent": acc, "acc_frames": frame_list(curve.frames),
+                         "acc_pooled_percent": pooled,
+                         "mean_truth": float(truth[kept].mean()) if kept.any() else float("nan"),
+                         "mean_prediction": float(prediction[kept].mean()) if kept.any() else float("nan"),
+                         "n_frames_left_out": left_out})
         else:
             # Dis: NaN where the true body is empty (left out, counted), +inf where the prediction blew up
             values = group["prediction"].to_numpy()
@@ -258,13 +296,31 @@ def summarise(steps: pd.DataFrame) -> pd.DataFrame:
             rows.append({**base, "sim": "all", "mean_prediction": float(values[defined].mean())
                          if defined.any() and not blown_sims else float("nan"),
                          "n_frames_left_out": int((~defined).sum())})
-    columns = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
+    columns = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
+               "mean_truth", "mean_prediction", "n_sims",
                "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims"]
     table = pd.DataFrame(rows).reindex(columns=columns)
     table["metric"] = pd.Categorical(table["metric"], categories=order, ordered=True)
     table = table.sort_values(["metric", "method"], kind="stable").reset_index(drop=True)
     table["metric"] = table["metric"].astype(str)
     return table
+
+
+def _plausibility(metric: str, group: pd.DataFrame, frames: list[int] | None, blown: bool) -> dict:
+    """A plausibility measure over the scored frames of every sim: the truth's and the prediction's largest value
+    (overlaps, kinetic energy) or sum (particles outside the box); the kinetic energy also gets the article-style
+    Acc against the truth. A blown-up rollout has no value, only its flag."""
+    how = plausibility.AGGREGATE[metric]
+    truth, prediction = group["truth"].to_numpy(np.float64), group["prediction"].to_numpy(np.float64)
+    reduce = np.nanmax if how == "max" else np.nansum
+    out = {"mean_truth": float(reduce(truth)) if np.isfinite(truth).any() else float("nan"),
+           "mean_prediction": float("nan") if blown or not np.isfinite(prediction).any() else float(reduce(prediction)),
+           "n_frames_left_out": int((~np.isfinite(truth)).sum())}
+    if metric == "Kinetic energy" and not blown:
+        curve = curve_accuracy(group["tau"].to_numpy(), truth, prediction, frames)
+        out.update(acc_percent=curve.acc, acc_frames=frame_list(curve.frames),
+                   acc_pooled_percent=accuracy(truth, prediction)[0])
+    return out
 
 
 def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:

@@ -23,9 +23,12 @@ from generators.atomic import atomic_path
 
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
+# plausibility measures without an Acc (the kinetic energy has one: a metric with a truth)
+PLAUSIBILITY = {"Max overlap", "P99 overlap", "Outside box"}
 
 # The value columns shown, with their headings.
-COLUMNS = {"acc_percent": "Acc (%)", "mse": "MSE (m²)", "mean_truth": "mean truth",
+COLUMNS = {"acc_percent": "Acc (%), article", "acc_frames": "Acc frames (tau)",
+           "acc_pooled_percent": "Acc (%), pooled", "mse": "MSE (m²)", "mean_truth": "mean truth",
            "mean_prediction": "mean prediction", "n_sims": "sims", "n_frames": "frames",
            "n_frames_left_out": "frames left out", "n_blown_up": "blown up"}
 COUNTS = ("n_sims", "n_frames", "n_frames_left_out", "n_blown_up")
@@ -34,8 +37,10 @@ COUNTS = ("n_sims", "n_frames", "n_frames_left_out", "n_blown_up")
 APPLIES = {
     "mse": {"mse", "mean_prediction", "n_sims", "n_frames", "n_blown_up"},
     "seconds": {"mean_prediction", "n_sims"},
-    "truth": {"acc_percent", "mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
+    "truth": {"acc_percent", "acc_frames", "acc_pooled_percent", "mean_truth", "mean_prediction", "n_sims",
+              "n_frames", "n_frames_left_out", "n_blown_up"},
     "pair": {"mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
+    "plausibility": {"mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
 }
 NOT_APPLICABLE = {
     "mse": "the rollout MSE is its own error measure: no Acc, no truth value, no frames left out",
@@ -43,6 +48,8 @@ NOT_APPLICABLE = {
     "truth": "a scene metric has Acc against its truth, not an MSE",
     "pair": "this metric compares the prediction with the truth frame by frame: no truth value of its own, "
             "so no Acc and no MSE",
+    "plausibility": "a plausibility measure: the truth's and the prediction's largest value over the scored "
+                    "frames (particles outside the box: their sum), no Acc",
 }
 
 STYLE = """
@@ -65,6 +72,8 @@ def _kind(row: pd.Series, metric_names: dict[str, set[str]]) -> str:
         return "mse"
     if metric == SECONDS:
         return "seconds"
+    if metric in PLAUSIBILITY:
+        return "plausibility"
     if metric in metric_names["truth"]:
         return "truth"
     if metric in metric_names["pair"]:
@@ -93,7 +102,8 @@ def why_undefined(row: pd.Series, kind: str, column: str) -> str:
         return f"{blown} rollout(s) blew up" + (f": {sims}" if sims else "")
     frames, left_out = row.get("n_frames"), row.get("n_frames_left_out")
     every = not _is_nan(frames) and not _is_nan(left_out) and int(left_out) >= int(frames) > 0
-    if kind == "truth" and column in ("acc_percent", "mean_truth") and _is_nan(row.get("mean_truth")):
+    truthless = _is_nan(row.get("mean_truth"))
+    if kind == "truth" and column in ("acc_percent", "acc_pooled_percent", "mean_truth") and truthless:
         return "the DEM truth is zero or undefined in every scored frame"
     if column == "mean_prediction" and every:
         return f"undefined in all {int(frames)} scored frames"
@@ -103,6 +113,8 @@ def why_undefined(row: pd.Series, kind: str, column: str) -> str:
 
 
 def _number(column: str, value) -> str:
+    if column == "acc_frames":
+        return html.escape(str(value))
     if column in COUNTS:
         return str(int(value))
     if isinstance(value, float) and math.isinf(value):

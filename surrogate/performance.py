@@ -55,12 +55,12 @@ def _peak_rss_mb() -> float:
 
 
 def _scores(name: str, sims: list[tuple[str, h5md.Trajectory, np.ndarray]], history: int,
-            body_displacement: float | None) -> dict:
+            body_displacement: float | None, frames: list[int] | None = None) -> dict:
     """MSE and Acc per scene metric of one contender's predictions over the sims."""
     steps = [rows for sim_id, traj, prediction in sims
              for rows in score(sim_id, traj, np.asarray(traj.position, np.float64), {name: prediction}, history,
                                body_displacement)]
-    table = summarise(pd.concat(steps, ignore_index=True))
+    table = summarise(pd.concat(steps, ignore_index=True), frames)
     table = table[table["sim"] == "all"]
     out = {"mse": float(table.loc[table["metric"] == MSE, "mse"].iloc[0])}
     for row in table.itertuples():
@@ -94,7 +94,8 @@ def execution(variant: dict, engine_name: str) -> tuple[int, int]:
 
 
 def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packings: list[Path],
-                  truths: list[Path], history: int, repeats: int, body_displacement: float | None = None) -> dict:
+                  truths: list[Path], history: int, repeats: int, body_displacement: float | None = None,
+                  frames: list[int] | None = None) -> dict:
     """Time and score one DEM contender on the sims of ``rows`` (truth in ``truths``)."""
     dem = scenes.get(scene)
     ranks, threads = execution(variant, rows[0]["engine"])
@@ -116,9 +117,9 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
                 continue
             h5 = convert.convert(Path(scratch) / "raw0", Path(scratch) / "run.h5")
             prediction = np.asarray(h5md.read(h5).position, np.float64)
-        frames = truth.n_frames - history
+        predicted = truth.n_frames - history
         # the recorded window covers frames 1..T-1: the predicted frames' share of its loop time
-        seconds.append(statistics.median(m.window_seconds for m in runs) * frames / (truth.n_frames - 1))
+        seconds.append(statistics.median(m.window_seconds for m in runs) * predicted / (truth.n_frames - 1))
         per_step.append(statistics.median(m.window_seconds / m.window_steps for m in runs))
         wall.append(statistics.median(m.run.wall_time for m in runs))
         runup.append(statistics.median(m.run.runup_seconds or 0.0 for m in runs))
@@ -130,7 +131,7 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
         steps_per_frame.append(runs[0].steps_per_frame)
         peak.append(max(m.run.max_rss_mb for m in runs))
         scored.append((row["id"], truth, prediction))
-        work.append((frames, int((~np.asarray(truth.kinematic, bool)).sum())))
+        work.append((predicted, int((~np.asarray(truth.kinematic, bool)).sum())))
     out = {"contender": name, "kind": "dem", "settings": json.dumps(variant, sort_keys=True), "trained": True,
            "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored), "ranks": ranks,
            "threads": threads, "cores": ranks * threads}
@@ -145,13 +146,13 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
                runup_seconds=float(np.mean(runup)), dt_over_limit=float(np.mean(dt_over_limit)),
                particles=float(np.mean(particles)),
                seconds_per_particle_step=float(np.mean([s / n for s, n in zip(per_step, particles, strict=True)])))
-    out.update(_scores(name, scored, history, body_displacement))
+    out.update(_scores(name, scored, history, body_displacement, frames))
     return out
 
 
 def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: rt.Runtime, truths: list[Path],
                         repeats: int, threads: int, seed: int = 0, body_displacement: float | None = None,
-                        device: str = "cpu") -> dict:
+                        frames: list[int] | None = None, device: str = "cpu") -> dict:
     """Time and score one surrogate contender (the trained checkpoint, or an untrained model of
     other sizes when ``variant`` has size keys) on the sims ``truths``, computed on ``device``
     (:mod:`surrogate.devices`; the row names the device it ran on)."""
@@ -179,9 +180,9 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
         graph_share.append(share)
         timing = run.timing
         edges.append(timing["edges_per_step"])
-        frames = sim.n_frames - simulator.history
+        predicted = sim.n_frames - simulator.history
         particles.append(traj.n_particles)
-        work.append((frames, int((~sim.kinematic).sum()),
+        work.append((predicted, int((~sim.kinematic).sum()),
                      gflop_per_step({**meta["model"], **sizes}, sim.position.shape[-1], len(props),
                                     timing["nodes_per_step"], timing["edges_per_step"], runtime.split_edge_mlp,
                                     timing["decoded_per_step"])))
@@ -202,7 +203,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": gflop / n_frames,
            "gflop_per_second": gflop / sum(seconds)}
     if trained:
-        out.update(_scores(name, scored, simulator.history, body_displacement))
+        out.update(_scores(name, scored, simulator.history, body_displacement, frames))
     return out
 
 

@@ -18,7 +18,8 @@ from surrogate.metrics import units  # noqa: E402
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
-         "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity")}
+         "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity"),
+         "dem_ensemble": dict(color="#2a6fd4", lw=1.2, ls=":", label="DEM ensemble (perturbed rerun)")}
 
 
 

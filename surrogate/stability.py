@@ -27,20 +27,11 @@ import torch
 
 from generators.blowup import overlap_fractions
 from surrogate import runtime as rt
+from surrogate.metrics.plausibility import OVERLAP_QUANTILE, kinetic_energy
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim
 from surrogate.simulator import LearnedSimulator
-
-OVERLAP_QUANTILE = 99           # the percentile of overlap / radius reported beside the maximum
-
-
-def kinetic_energy(position: np.ndarray, mass: np.ndarray, moving: np.ndarray, frame_interval: float) -> np.ndarray:
-    """[T] kinetic energy of the moving particles, 1/2 sum m |x_t - x_(t-1)|^2 / dt^2 (J, or J per m in
-    2D); frame 0 has no velocity (NaN)."""
-    x = np.asarray(position, np.float64)[:, moving]
-    v2 = (np.diff(x, axis=0) ** 2).sum(axis=-1) / frame_interval**2
-    return np.concatenate([[np.nan], 0.5 * (v2 * np.asarray(mass, float)[moving]).sum(axis=-1)])
 
 
 def frame_table(position: np.ndarray, sim: Sim, lower: np.ndarray, upper: np.ndarray, start: int, max_overlap: float,

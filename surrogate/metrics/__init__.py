@@ -9,7 +9,8 @@ A metric class has ``for_trajectory(traj, body_displacement)``, ``names``, ``pai
 from __future__ import annotations
 
 from generators import scenes
-from surrogate.metrics.accuracy import accuracy
+from surrogate.metrics import plausibility
+from surrogate.metrics.accuracy import CurveAccuracy, accuracy, curve_accuracy, frame_list
 
 
 def of_scene(name: str):
@@ -21,10 +22,10 @@ def of_scene(name: str):
 
 def units() -> dict[str, str]:
     """Unit of every metric of every scene, plus the rollout MSE's."""
-    out = {"rollout MSE": "m$^2$"}
+    out = {"rollout MSE": "m$^2$", **plausibility.UNITS}
     for scene in scenes.registry().values():
         out.update(scene.metrics.units)
     return out
 
 
-__all__ = ["accuracy", "of_scene", "units"]
+__all__ = ["CurveAccuracy", "accuracy", "curve_accuracy", "frame_list", "of_scene", "plausibility", "units"]

@@ -1,21 +1,26 @@
-"""Acc(M) of the article (section 5.2), with the truth in the denominator."""
+"""Acc(M) of the article (section 5.2), with the truth in the denominator: taken the article's way on the
+test-set mean curve (:func:`curve_accuracy`, the headline), and pooled over every (sim, frame) pair
+(:func:`accuracy`, a stricter second figure that is not comparable with the article's)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 
 def accuracy(truth: np.ndarray, prediction: np.ndarray) -> tuple[float, int]:
-    r"""Pooled accuracy over predicted frames, and the number of frames left out.
+    r"""Pooled accuracy over (sim, frame) pairs, and the number of pairs left out.
 
     .. math::
         \mathrm{Acc}(M) = \frac{1}{|F|}\sum_{\tau \in F}\Big(1 - \frac{|M_{pred}(\tau) - M_{true}(\tau)|}
         {|M_{true}(\tau)|}\Big) \times 100\,\%
 
-    F holds the frames whose truth is defined and non-zero; frames where the truth is 0 (or
-    undefined, e.g. no landslide body yet) are left out and counted. A frame whose prediction is
+    F holds the pairs whose truth is defined and non-zero; pairs where the truth is 0 (or
+    undefined, e.g. no landslide body yet) are left out and counted. A pair whose prediction is
     undefined while the truth is not (an empty predicted body, a rollout that blew up) scores 0 %.
-    Returns ``(nan, n_left_out)`` when every frame is left out.
+    Returns ``(nan, n_left_out)`` when every pair is left out.
     """
     truth = np.asarray(truth, np.float64).ravel()
     prediction = np.asarray(prediction, np.float64).ravel()
@@ -28,3 +33,64 @@ def accuracy(truth: np.ndarray, prediction: np.ndarray) -> tuple[float, int]:
     t, p = truth[kept], prediction[kept]
     terms = np.where(np.isfinite(p), 1.0 - np.abs(p - t) / np.abs(t), 0.0)
     return float(terms.mean() * 100.0), left_out
+
+
+@dataclass(frozen=True)
+class CurveAccuracy:
+    """Article-style Acc and what it was taken over."""
+
+    acc: float                      # percent; NaN when no frame of the set is scored
+    frames: tuple[int, ...]         # the taus averaged over
+    left_out: tuple[int, ...]       # taus of the set whose mean truth is 0 or undefined
+    missing: tuple[int, ...]        # taus of the set the rollout does not reach
+    undefined_prediction: int       # (sim, tau) pairs of scored taus whose prediction is undefined
+
+
+def curve_accuracy(tau: np.ndarray, truth: np.ndarray, prediction: np.ndarray,
+                   frames: Sequence[int] | None = None) -> CurveAccuracy:
+    r"""Acc of the test-set mean curve, the article's way (its Tables 2 and 3 follow from their own columns).
+
+    .. math::
+        \mathrm{Acc}(M) = \frac{1}{|T|}\sum_{\tau \in T}\Big(1 - \frac{|\bar M_{pred}(\tau) - \bar M_{true}(\tau)|}
+        {|\bar M_{true}(\tau)|}\Big) \times 100\,\%
+
+    ``tau``, ``truth`` and ``prediction`` hold one entry per (sim, tau). At each tau, the bar means average
+    over the sims whose truth is defined there. T is ``frames`` (every tau present when None), less the taus
+    whose mean truth is 0 or undefined (left out, listed) and those beyond the rollout (missing, listed).
+    A tau at which any of those sims has an undefined prediction (an empty predicted body, a blown-up rollout)
+    scores 0 %, as an undefined pair does in :func:`accuracy`: a missing prediction is an error, not a gap.
+    """
+    tau = np.asarray(tau).ravel()
+    truth = np.asarray(truth, np.float64).ravel()
+    prediction = np.asarray(prediction, np.float64).ravel()
+    if not tau.shape == truth.shape == prediction.shape:
+        raise ValueError(f"tau, truth and prediction differ in length: {tau.shape}, {truth.shape}, "
+                         f"{prediction.shape}")
+    present = sorted({int(t) for t in tau})
+    wanted = present if frames is None else sorted({int(f) for f in frames})
+    missing = tuple(t for t in wanted if t not in present)
+    terms, scored, left_out, undefined = [], [], [], 0
+    for t in (t for t in wanted if t in present):
+        at = (tau == t) & np.isfinite(truth)
+        mean_truth = truth[at].mean() if at.any() else np.nan
+        if not np.isfinite(mean_truth) or mean_truth == 0:
+            left_out.append(t)
+            continue
+        bad = int((~np.isfinite(prediction[at])).sum())
+        undefined += bad
+        scored.append(t)
+        terms.append(0.0 if bad else 1.0 - abs(prediction[at].mean() - mean_truth) / abs(mean_truth))
+    acc = float(np.mean(terms) * 100.0) if terms else float("nan")
+    return CurveAccuracy(acc, tuple(scored), tuple(left_out), missing, undefined)
+
+
+def frame_list(frames: Sequence[int]) -> str:
+    """Taus as text, runs shortened: (1, 2, 3, 4) -> '1-4', (5, 10, 15) -> '5 10 15'."""
+    frames = sorted(int(f) for f in frames)
+    parts, start = [], None
+    for i, f in enumerate(frames):
+        start = f if start is None else start
+        if i + 1 == len(frames) or frames[i + 1] != f + 1:
+            parts.append(str(f) if f == start else f"{start}-{f}" if f > start + 1 else f"{start} {f}")
+            start = None
+    return " ".join(parts)

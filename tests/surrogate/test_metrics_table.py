@@ -9,19 +9,27 @@ import pandas as pd
 from surrogate import metrics_table
 
 NAN = math.nan
-COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "mse", "mean_truth", "mean_prediction", "n_sims",
-           "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims", "split", "split_note", "history"]
+COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
+           "mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims",
+           "split", "split_note", "history"]
 ROWS = [
-    ("slide", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test", NAN, 6),
-    ("slide", "constant_velocity", "rollout MSE", "all", NAN, 2.25, NAN, 2.25, 1, 14, NAN, 0, NAN, "test", NAN, 6),
-    ("slide", "graphdem", "Slide Num", "all", NAN, NAN, 18.5, NAN, 1, 14, 0, 1, "slide_0003", "test", NAN, 6),
-    ("slide", "constant_velocity", "Slide Num", "all", NAN, NAN, NAN, NAN, 1, 14, 14, 0, NAN, "test", NAN, 6),
-    ("slide", "constant_velocity", "Max Ht", "all", 95.02, NAN, 34.66, 35.77, 1, 14, 0, 0, NAN, "test", NAN, 6),
-    ("slide", "constant_velocity", "Dis", "all", NAN, NAN, NAN, 28.26, 1, 14, 0, 0, NAN, "test", NAN, 6),
-    ("slide", "graphdem", "seconds per frame", "all", NAN, NAN, NAN, 0.013, 1, NAN, NAN, NAN, NAN, "test", NAN, 6),
-    ("slide", "graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test",
+    ("slide", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test",
      NAN, 6),
+    ("slide", "constant_velocity", "rollout MSE", "all", NAN, NAN, NAN, 2.25, NAN, 2.25, 1, 14, NAN, 0, NAN, "test",
+     NAN, 6),
+    ("slide", "graphdem", "Slide Num", "all", NAN, NAN, NAN, NAN, 18.5, NAN, 1, 14, 0, 1, "slide_0003", "test",
+     NAN, 6),
+    ("slide", "constant_velocity", "Slide Num", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, 14, 0, NAN, "test",
+     NAN, 6),
+    ("slide", "constant_velocity", "Max Ht", "all", 95.02, "1-14", 93.1, NAN, 34.66, 35.77, 1, 14, 0, 0, NAN,
+     "test", NAN, 6),
+    ("slide", "constant_velocity", "Dis", "all", NAN, NAN, NAN, NAN, NAN, 28.26, 1, 14, 0, 0, NAN, "test", NAN, 6),
+    ("slide", "graphdem", "seconds per frame", "all", NAN, NAN, NAN, NAN, NAN, 0.013, 1, NAN, NAN, NAN, NAN, "test",
+     NAN, 6),
+    ("slide", "graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003",
+     "test", NAN, 6),
 ]
+HEADINGS = ["method", "metric", "sim", *metrics_table.COLUMNS, "why"]
 
 
 def cells(page: str) -> dict[tuple[str, str, str], list[str]]:
@@ -31,8 +39,12 @@ def cells(page: str) -> dict[tuple[str, str, str], list[str]]:
         texts = [re.sub(r"<[^>]+>", " ", c).split() for c in re.findall(r"<td[^>]*>(.*?)</td>", row, re.S)]
         texts = [" ".join(t) for t in texts]
         if texts:
-            out[(texts[0], texts[1].split(" (")[0], texts[2])] = texts
+            out[(texts[0], texts[1].split(" (")[0], texts[2])] = dict(zip(HEADINGS, texts, strict=True))
     return out
+
+
+def values(row: dict[str, str], *columns: str) -> list[str]:
+    return [row[c] for c in columns]
 
 
 def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
@@ -43,21 +55,28 @@ def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
     assert csv.read_bytes() == before                       # the CSV is only read
     assert "nan" not in re.sub(r"<[^>]+>", " ", page).lower().split()
     rows = cells(page)
-    # columns: method metric sim | Acc MSE truth prediction sims frames left-out blown-up | why
+    value_columns = ["acc_percent", "mse", "mean_truth", "mean_prediction"]
     blown = rows[("graphdem", "rollout MSE", "all")]
-    assert blown[3:5] == ["n/a", "undefined"] and blown[6] == "undefined"
-    assert blown[-1] == "1 rollout(s) blew up: slide_0003" and blown[-2] == "1 slide_0003"
+    assert values(blown, "acc_percent", "mse", "mean_prediction") == ["n/a", "undefined", "undefined"]
+    assert blown["why"] == "1 rollout(s) blew up: slide_0003" and blown["n_blown_up"] == "1 slide_0003"
     baseline = rows[("constant_velocity", "rollout MSE", "all")]
-    assert baseline[3:7] == ["n/a", "2.25", "n/a", "2.25"] and baseline[-1] == ""
+    assert values(baseline, *value_columns) == ["n/a", "2.25", "n/a", "2.25"] and baseline["why"] == ""
+    assert values(baseline, "acc_frames", "acc_pooled_percent") == ["n/a", "n/a"]
     flagged = rows[("graphdem", "Slide Num", "all")]        # truth defined, the rollout blew up
-    assert flagged[3:7] == ["undefined", "n/a", "18.5", "undefined"] and "blew up" in flagged[-1]
+    assert values(flagged, *value_columns) == ["undefined", "n/a", "18.5", "undefined"] and "blew up" in flagged["why"]
+    assert flagged["acc_pooled_percent"] == "undefined"
     no_truth = rows[("constant_velocity", "Slide Num", "all")]
-    assert no_truth[3] == "undefined" and "truth is zero or undefined in every scored frame" in no_truth[-1]
-    assert "undefined in all 14 scored frames" in no_truth[-1]
-    assert rows[("constant_velocity", "Max Ht", "all")][3:7] == ["95.02", "n/a", "34.66", "35.77"]
+    assert no_truth["acc_percent"] == "undefined"
+    assert "truth is zero or undefined in every scored frame" in no_truth["why"]
+    assert "undefined in all 14 scored frames" in no_truth["why"]
+    max_ht = rows[("constant_velocity", "Max Ht", "all")]
+    assert values(max_ht, *value_columns) == ["95.02", "n/a", "34.66", "35.77"]
+    assert values(max_ht, "acc_frames", "acc_pooled_percent") == ["1-14", "93.1"]
     dis = rows[("constant_velocity", "Dis", "all")]          # compares prediction with truth: no Acc, no truth
-    assert dis[3:7] == ["n/a", "n/a", "n/a", "28.26"] and dis[-1] == ""
+    assert values(dis, *value_columns) == ["n/a", "n/a", "n/a", "28.26"] and dis["why"] == ""
     timing = rows[("graphdem", "seconds per frame", "all")]
-    assert timing[3:11] == ["n/a", "n/a", "n/a", "0.013", "1", "n/a", "n/a", "n/a"]
-    assert rows[("graphdem", "rollout MSE", "slide_0003")][4] == "undefined"
+    assert values(timing, "acc_percent", "acc_frames", "acc_pooled_percent", "mse", "mean_truth", "mean_prediction",
+                  "n_sims", "n_frames", "n_frames_left_out", "n_blown_up") == \
+        ["n/a", "n/a", "n/a", "n/a", "n/a", "0.013", "1", "n/a", "n/a", "n/a"]
+    assert rows[("graphdem", "rollout MSE", "slide_0003")]["mse"] == "undefined"
     assert "<h2>Per sim</h2>" in page and "split test" in page and "K = 6" in page

@@ -37,6 +37,9 @@ ENGINES = list(gengine.DRIVERS)
 # configured engine from packings perturbed by crosscheck.perturbation radii (results/crosscheck/<scene>/chaos/).
 CROSSCHECK_RUNS = [f"crosscheck/{s}/{e}" for s in SCENES for e in ENGINES if e != CFG[s]["engine"]]
 CROSSCHECK_RUNS += [f"crosscheck/{s}/chaos" for s in SCENES]
+# The DEM ensemble (results/<scene>/ensemble/): the scene's test sims rerun by its configured engine from packings
+# perturbed by evaluate.ensemble_perturbation radii, scored beside Graph-DEM (the chaos floor).
+ENSEMBLE_RUNS = [f"{s}/ensemble" for s in SCENES]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -46,7 +49,7 @@ SCALE_FOLDERS = set()
 
 wildcard_constraints:
     scene="|".join(SCENES),
-    run="|".join(SCENES + CROSSCHECK_RUNS),
+    run="|".join(SCENES + CROSSCHECK_RUNS + ENSEMBLE_RUNS),
     engine="|".join(ENGINES),
     bench="|".join(BENCHMARKS),
     name="|".join(SCENES + BENCHMARKS),
@@ -97,8 +100,9 @@ def scene_engine(wildcards) -> str:
 
 
 def run_scene(wildcards) -> str:
-    """The scene of a run (results/<scene> or results/crosscheck/<scene>/<engine>)."""
-    return wildcards.run.split("/")[1] if wildcards.run.startswith("crosscheck/") else wildcards.run
+    """The scene of a run (results/<scene>, results/<scene>/ensemble or results/crosscheck/<scene>/<engine>)."""
+    parts = wildcards.run.split("/")
+    return parts[1] if parts[0] == "crosscheck" else parts[0]
 
 
 def run_engine(wildcards) -> str:
@@ -153,6 +157,8 @@ def sim_row_json(wildcards) -> str:
     row = {**_physics(run_scene(wildcards), wildcards.sim), "engine": run_engine(wildcards)}
     if wildcards.run.endswith("/chaos"):
         row["perturbation"] = CFG["crosscheck"]["perturbation"]
+    elif wildcards.run.endswith("/ensemble"):
+        row["perturbation"] = CFG[run_scene(wildcards)]["evaluate"]["ensemble_perturbation"]
     return _json(row)
 
 
@@ -209,6 +215,14 @@ def runtime_json(wildcards) -> str:
 def body_displacement_arg(wildcards) -> list[str]:
     value = _section(wildcards).get("evaluate", {}).get("body_displacement")
     return [] if value is None else ["--body-displacement", str(value)]
+
+
+def metric_args(wildcards) -> list[str]:
+    """The scene metrics' settings (`evaluate` section): the body threshold and the article-style Acc's frames."""
+    section = _section(wildcards).get("evaluate", {})
+    value, frames = section.get("body_displacement"), section.get("frames")
+    return ([] if value is None else ["--body-displacement", str(value)]) + \
+        ([] if frames is None else ["--frames", *map(str, frames)])
 
 
 def history_length(wildcards) -> int:
@@ -270,11 +284,20 @@ def evaluated_rollouts(wildcards) -> list[str]:
     return rollout_paths(wildcards.name, test_ids(wildcards.name))
 
 
+def ensemble_sims(wildcards) -> list[str]:
+    """The DEM ensemble of a scene's test sims (none where evaluate.ensemble_perturbation is null, or for a
+    public benchmark, whose engine runs are not ours to repeat)."""
+    if not is_scene(wildcards) or CFG[wildcards.name]["evaluate"]["ensemble_perturbation"] is None:
+        return []
+    return [f"results/{wildcards.name}/ensemble/sims/{i}.h5" for i in test_ids(wildcards.name)]
+
+
 def evaluation_args(wildcards) -> list[str]:
-    """The split, protocols and rollouts of the evaluate stage."""
+    """The split, protocols, rollouts and DEM ensemble of the evaluate stage."""
     if is_scene(wildcards):
+        ensemble = ["--ensemble", f"results/{wildcards.name}/ensemble/sims"] if ensemble_sims(wildcards) else []
         return ["--split", "test", "--history", str(history_length(wildcards)),
-                "--rollouts", f"results/{wildcards.name}/rollouts"]
+                "--rollouts", f"results/{wildcards.name}/rollouts", *ensemble]
     bench = CFG[wildcards.name]
     return ["--split", bench["evaluate"]["split"], "--history", *(str(k) for k in bench["protocols"])]
 

@@ -41,7 +41,7 @@ rule transfer_evaluate:
     params:
         history=history_length,
         runtime=runtime_json,
-        body=body_displacement_arg,
+        metrics=metric_args,
     threads: 1
     log:
         "results/crosscheck/{scene}/logs/transfer_{engine}.log",
@@ -49,7 +49,7 @@ rule transfer_evaluate:
         "results/crosscheck/{scene}/benchmarks/transfer_{engine}.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --data {input.sims:q} --split test --history {params.history:q} "
-        "--runtime-json {params.runtime:q} {params.body:q} --out {output:q} --no-progress > {log} 2>&1"
+        "--runtime-json {params.runtime:q} {params.metrics:q} --out {output:q} --no-progress > {log} 2>&1"
 
 
 rule transfer:

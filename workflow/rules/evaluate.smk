@@ -7,6 +7,7 @@ rule evaluate:
         checkpoint="results/{name}/model/best.pt",
         splits="results/{name}/dataset/splits.csv",
         rollouts=evaluated_rollouts,
+        ensemble=ensemble_sims,
     output:
         metrics=report("results/{name}/metrics.csv", caption="../report/metrics.rst",
                        category=report_category, subcategory="evaluation",
@@ -24,7 +25,7 @@ rule evaluate:
     params:
         evaluation=evaluation_args,
         runtime=runtime_json,
-        body=body_displacement_arg,
+        metrics=metric_args,
         device=device_arg,
     threads: 1
     resources:
@@ -37,4 +38,4 @@ rule evaluate:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} "
         "--per-step {output.per_step:q} "
-        "--plots results/{wildcards.name}/plots {params.body:q} {params.device:q} --no-progress > {log} 2>&1"
+        "--plots results/{wildcards.name}/plots {params.metrics:q} {params.device:q} --no-progress > {log} 2>&1"

@@ -11,7 +11,7 @@ rule performance_dem:
         sims=timed_rows_json,
         history=history_length,
         repeats=stage_setting("performance", "repeats"),
-        body=body_displacement_arg,
+        metrics=metric_args,
     threads: contender_threads("dem")
     log:
         "results/{scene}/logs/performance/dem_{contender}.log",
@@ -20,7 +20,7 @@ rule performance_dem:
     shell:
         "graphdem performance-dem --scene {wildcards.scene} --name {wildcards.contender} --variant {params.variant:q} "
         "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth:q} "
-        "--history {params.history:q} --repeats {params.repeats:q} {params.body:q} --out {output:q} > {log} 2>&1"
+        "--history {params.history:q} --repeats {params.repeats:q} {params.metrics:q} --out {output:q} > {log} 2>&1"
 
 
 rule performance_surrogate:
@@ -34,7 +34,7 @@ rule performance_surrogate:
         runtime=runtime_json,
         repeats=stage_setting("performance", "repeats"),
         threads=stage_setting("performance", "threads"),
-        body=body_displacement_arg,
+        metrics=metric_args,
         device=device_arg,
     threads: contender_threads("surrogate")
     resources:
@@ -46,7 +46,7 @@ rule performance_surrogate:
     shell:
         "graphdem performance-surrogate --name {wildcards.contender} --variant {params.variant:q} "
         "--checkpoint {input.checkpoint:q} --data {input.truth:q} --runtime-json {params.runtime:q} "
-        "--threads {params.threads:q} --repeats {params.repeats:q} {params.body:q} {params.device:q} "
+        "--threads {params.threads:q} --repeats {params.repeats:q} {params.metrics:q} {params.device:q} "
         "--out {output:q} > {log} 2>&1"
 
 
