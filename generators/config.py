@@ -113,6 +113,9 @@ def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = Fa
         while "$ref" in items:
             items = _resolve(items["$ref"], schema)
         allowed["items"] = {k: v for k, v in items.items() if k != "description"}
+    if "oneOf" in node:                 # a choice of forms, e.g. a number or `auto`: name each
+        allowed = " or ".join(str(option.get("const", option)) for option in node["oneOf"])
+        return f"config key {where!r} = {error.instance!r} is not allowed; allowed: {allowed}"
     return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
 
 

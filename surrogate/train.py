@@ -28,7 +28,7 @@ import torch
 from tqdm import tqdm
 
 from generators.atomic import atomic_path
-from surrogate import checkpoint, devices, distributed
+from surrogate import checkpoint, derived, devices, distributed
 from surrogate.errors import TrainingDiverged
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
@@ -241,6 +241,9 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     index = sample_index(train_sims, k)
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
+    train_cfg = derived.resolve(train_cfg, stats, n_batches)
+    for name, rule in train_cfg.get("derived", {}).items():
+        log.info("train.%s = %.6g, derived (%s)", name, train_cfg[name], rule["rule"])
     seed = int(train_cfg["seed"])
     precision = str(train_cfg["precision"])
     settings = _settings(model_cfg, train_cfg, stats, [s.id for s in train_sims])

@@ -332,8 +332,28 @@ def test_scene_outputs(ci_results, scene, dim, metrics):
     assert metrics | {"rollout MSE"} <= set(table["metric"])
     mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index("method")["mse"]
     assert np.isfinite(mse["graphdem"]) and mse["graphdem"] > 0 and np.isfinite(mse["constant_velocity"])
+    # the DEM ensemble: each test sim rerun from a packing perturbed by 1e-6 radii differs from it, but by far less
+    # than extrapolation does (the chaos floor)
+    assert 0 < mse["dem_ensemble"] < mse["constant_velocity"]
+    assert sorted(p.stem for p in (res / "ensemble" / "sims").glob("*.h5")) == \
+        sorted(table.loc[(table["metric"] == "rollout MSE") & (table["sim"] != "all"), "sim"].unique())
     steps = pd.read_csv(res / "metrics_per_step.csv")
-    assert set(steps["method"]) == {"graphdem", "constant_velocity"}
+    assert set(steps["method"]) == {"graphdem", "constant_velocity", "dem_ensemble"}
+    overall = table[table["sim"] == "all"].set_index(["method", "metric"])
+    # plausibility: the DEM's own overlaps stay below its blow-up limit, and no DEM particle leaves the box
+    for method in ("dem_ensemble", "graphdem"):
+        assert 0 < overall.at[(method, "Max overlap"), "mean_truth"] < 0.5
+        assert overall.at[(method, "Outside box"), "mean_truth"] == 0
+    assert overall.at[("dem_ensemble", "Outside box"), "mean_prediction"] == 0
+    # the article's frame set: the meteorite's Acc averages over Table 2's taus that its ci window reaches
+    frames = set(overall.loc[(slice(None), sorted(metrics & set(overall.index.get_level_values(1)))),
+                             "acc_frames"].dropna())
+    n_predicted = int(steps["tau"].max())
+    if scene == "meteorite":
+        want = " ".join(str(t) for t in (5, 10, 15, 20, 30) if t <= n_predicted)
+        assert frames <= {want} and frames
+    else:
+        assert frames <= {f"1-{n_predicted}"}
     for name in ("metrics_over_frames.png", "rollout.gif", "dataset_sample.png"):
         assert (res / "plots" / name).stat().st_size > 5_000
     for rule in ("sweep", "dataset", "train", "evaluate"):
