@@ -245,11 +245,13 @@ _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
 def coerce_scalars(value: Any) -> Any:
-    """Turn numeric strings into numbers, and ``true``/``false`` (any case) into booleans.
+    """Turn numeric strings into numbers, ``true``/``false`` (any case) into booleans, and ``null`` / ``~`` into
+    None.
 
     YAML 1.1 (PyYAML, and so Snakemake's ``--config``) reads ``5.0e9`` as a string, and Snakemake reads
     every scalar inside ``--config slide='{...}'`` as a string; a user who writes
-    ``--config slide='{young: 5.0e9}'`` means a number, and ``overwrite_scale=true`` means a boolean.
+    ``--config slide='{young: 5.0e9}'`` means a number, ``overwrite_scale=true`` a boolean, and
+    ``--config slide='{train: {ema_decay: null}}'`` no value (no config key takes the text "null").
     """
     if isinstance(value, dict):
         return {k: coerce_scalars(v) for k, v in value.items()}
@@ -257,6 +259,8 @@ def coerce_scalars(value: Any) -> Any:
         return [coerce_scalars(v) for v in value]
     if isinstance(value, str) and value.strip().lower() in ("true", "false"):
         return value.strip().lower() == "true"
+    if isinstance(value, str) and value.strip().lower() in ("null", "~"):
+        return None
     if isinstance(value, str) and _FLOAT.match(value.strip()):
         number = float(value)
         return int(number) if number.is_integer() and "." not in value and "e" not in value.lower() else number

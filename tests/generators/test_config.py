@@ -62,6 +62,8 @@ def test_true_and_false_strings_become_booleans_and_other_strings_stay():
     assert config.load({"overwrite_scale": "true"})["overwrite_scale"] is True
     assert config.load({"overwrite_scale": "False"})["overwrite_scale"] is False
     assert config.coerce_scalars({"a": ["TRUE", "yes", "12", "truth"]}) == {"a": [True, "yes", 12, "truth"]}
+    assert config.coerce_scalars({"ema_decay": "null", "b": "~", "c": "Null", "d": "nullable"}) == \
+        {"ema_decay": None, "b": None, "c": None, "d": "nullable"}
 
 
 def test_meteorite_contact_outside_the_history_is_refused():
