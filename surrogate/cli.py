@@ -180,6 +180,17 @@ def cmd_combine(args) -> None:
         table.to_csv(tmp, index=False)
     print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
 
+def cmd_seeds(args) -> None:
+    from generators.atomic import atomic_path
+    from surrogate import seeds
+    table = seeds.spread(seeds.read(args.metrics, args.seeds))
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    shown = table[table["column"].isin(["acc_percent", "mse"])]
+    for row in shown.itertuples():
+        print(f"{row.method:>18}  {row.metric:<14} {row.column:<11} {row.mean:.4g} +- {row.std:.2g} "
+              f"({row.min:.4g} .. {row.max:.4g}, {row.n_seeds} seeds)")
+
 def cmd_stability_surrogate(args) -> None:
     import torch
 
@@ -392,6 +403,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_combine)
+
+    p = sub.add_parser("seeds", help="mean and spread of every metric over models trained with different seeds",
+                       description="Combine the metrics.csv of models trained with different seeds (the same data, "
+                                   "the same evaluation) into one table: per method, metric, protocol and value "
+                                   "column the mean, sample standard deviation, range and each seed's value "
+                                   "(docs/surrogate.md, Seeds).")
+    p.add_argument("--metrics", type=Path, nargs="+", required=True, help="one metrics.csv per seed")
+    p.add_argument("--seeds", type=int, nargs="+", required=True, help="the seed of each table, in the same order")
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=cmd_seeds)
 
     p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
                        description="Stress test of the surrogate on H5MD sims: rollouts --lengths times the "

@@ -79,6 +79,27 @@ def test_surrogate_stage_outputs(workdir):
         assert (res / "benchmarks" / f"{stage}.tsv").is_file() and (res / "logs" / f"{stage}.log").is_file()
 
 
+def test_seeds_stage_trains_the_other_seeds_and_reports_the_spread(workdir):
+    """seeds=2: one more model (seed 1) beside the main one (seed 0), each scored by the same evaluation."""
+    import pandas as pd
+
+    from surrogate import checkpoint
+    proc = snakemake(workdir, "results/slide/seeds.csv", "-c2", config=(SMALL, "seeds=2"))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    res = workdir / "results" / "slide"
+    assert checkpoint.load(res / "seeds" / "1" / "model" / "best.pt")["json"]["train"]["seed"] == 1
+    table = pd.read_csv(res / "seeds.csv")
+    main = pd.read_csv(res / "metrics.csv").query("sim == 'all' and metric == 'rollout MSE'").set_index("method")
+    mse = table[(table["metric"] == "rollout MSE") & (table["column"] == "mse")].set_index("method")
+    assert (mse["n_seeds"] == 2).all()
+    first = float(mse.at["graphdem", "values"].split()[0].split(":")[1])
+    assert first == pytest.approx(main.at["graphdem", "mse"], rel=1e-5)     # seed 0 is the main model
+    assert mse.at["graphdem", "std"] > 0 and mse.at["graphdem", "min"] < mse.at["graphdem", "max"]
+    assert mse.at["constant_velocity", "std"] == 0.0 and mse.at["dem_ensemble", "std"] == 0.0
+    assert (res / "seeds" / "1" / "logs" / "train.log").is_file()
+    assert (res / "seeds" / "1" / "benchmarks" / "evaluate.tsv").is_file()
+
+
 def test_performance_stage_outputs(workdir):
     import pandas as pd
     res = workdir / "results" / "slide"

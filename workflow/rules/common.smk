@@ -55,6 +55,7 @@ wildcard_constraints:
     name="|".join(SCENES + BENCHMARKS),
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
+    seed=r"\d+",
 
 
 def report_category(wildcards) -> str:
@@ -282,6 +283,39 @@ def evaluated_rollouts(wildcards) -> list[str]:
     if not is_scene(wildcards):
         return []
     return rollout_paths(wildcards.name, test_ids(wildcards.name))
+
+
+# ---- seeds (results/<name>/seeds.csv) -----------------------------------------------------------------
+
+
+def _seeds(name: str) -> list[int]:
+    """The training seeds of a scene or benchmark: train.seed and the next `seeds` - 1."""
+    first = int(CFG[name]["train"]["seed"])
+    return list(range(first, first + int(CFG["seeds"])))
+
+
+def seed_list(wildcards) -> list[str]:
+    return [str(s) for s in _seeds(wildcards.name)]
+
+
+def seed_metrics(wildcards) -> list[str]:
+    """Each seed's metrics.csv: the main model's for the first seed, results/<name>/seeds/<seed>/ for the rest."""
+    first, *rest = _seeds(wildcards.name)
+    return [f"results/{wildcards.name}/metrics.csv", *(f"results/{wildcards.name}/seeds/{s}/metrics.csv" for s in rest)]
+
+
+def seed_train_config_json(wildcards) -> str:
+    """The train config with the seed of the job."""
+    return _json({**_section(wildcards)["train"], "seed": int(wildcards.seed)})
+
+
+def seed_evaluation_args(wildcards) -> list[str]:
+    """A seed's evaluation: the evaluate stage's, rolling out inside the job (no rollout files per seed)."""
+    args = evaluation_args(wildcards)
+    if "--rollouts" in args:
+        at = args.index("--rollouts")
+        del args[at:at + 2]
+    return args
 
 
 def ensemble_sims(wildcards) -> list[str]:
