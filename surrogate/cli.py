@@ -32,6 +32,11 @@ def cmd_dataset(args) -> None:
         table = dataset.split_table(table, Path(args.sims))
     stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius)
     print(json.dumps(stats, indent=2))
+    rate = stats.get("contact_miss_rate")
+    if rate is not None and rate > dataset.CONTACT_MISS_WARNING:
+        print(f"WARNING: R = {stats['connectivity_radius']:g} misses {100 * rate:.2g} % of the next frame's contacts "
+              f"on the train split (their pair is R or farther apart one frame earlier): the model cannot see them "
+              f"coming; a larger connectivity_radius closes the gap (docs/surrogate.md)")
     if args.plot:
         splits = pd.read_csv(Path(args.out_dir) / "splits.csv")
         first = splits[splits["split"] == "train"].iloc[0]

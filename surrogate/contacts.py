@@ -16,10 +16,7 @@ edges per particle, about as R to the power of the dimension.
 from __future__ import annotations
 
 import numpy as np
-import torch
 from scipy.spatial import cKDTree
-
-from surrogate.graph import radius_graph
 
 
 def contact_pairs(position: np.ndarray, radius: np.ndarray, moving: np.ndarray) -> np.ndarray:
@@ -62,6 +59,9 @@ def edges_per_particle(position: np.ndarray, connectivity_radius: float, kinemat
     """Mean over the frames of ``position`` [T, N, D] of the edges of the rollout's radius graph at
     R = ``connectivity_radius`` (both directions and the self edges, no edge between two kinematic
     particles; before any pruning) per particle."""
+    import torch  # here, so that the dataset stage's contact count needs no torch
+
+    from surrogate.graph import radius_graph
     position = np.asarray(position)
     kin = torch.from_numpy(np.asarray(kinematic, bool))
     edges = [radius_graph(torch.from_numpy(np.ascontiguousarray(frame)), connectivity_radius, kin).shape[1]

@@ -17,6 +17,9 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
+from surrogate.contacts import contact_misses
+
+CONTACT_MISS_WARNING = 0.01      # `graphdem dataset` warns above this contact-miss rate of R on the train split
 
 
 class _Moments:
@@ -65,6 +68,7 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         raise ValueError("the train split is empty: cannot compute normalisation statistics")
     vel = acc = None
     meta = {}
+    misses = [0, 0]                      # next-frame contacts missed by a graph of radius R, and all of them
     species = set()
     kinematic_species = set()
     props: dict[str, _Moments] = {}
@@ -83,6 +87,9 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
             raise ValueError(f"{path}: scene {traj.parameters.get('scene')!r} differs from the dataset's "
                              f"{meta['scene']!r} (one dataset holds one scene)")
         moving = ~traj.kinematic
+        missed, contacts = contact_misses(traj.position, traj.radius, connectivity_radius, traj.kinematic)
+        misses[0] += missed
+        misses[1] += contacts
         p = np.asarray(traj.position, np.float64)[:, moving]
         v = np.diff(p, axis=0)
         vel.add(v)
@@ -101,6 +108,9 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         "acceleration_mean": acc.mean.tolist(), "acceleration_std": np.maximum(acc.std, floor).tolist(),
         "velocity_unit": "m/frame", "acceleration_unit": "m/frame^2",
         "connectivity_radius": float(connectivity_radius),
+        # the share of the next frame's contacts whose pair is R or farther apart in the frame the graph is built
+        # on (surrogate/contacts.py): contacts the model cannot see coming
+        "contact_miss_rate": misses[0] / misses[1] if misses[1] else None, "next_frame_contacts": int(misses[1]),
         "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
         "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
         # node properties f_i (radius and the H5MD properties) over the moving train particles; those the

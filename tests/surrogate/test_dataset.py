@@ -55,3 +55,23 @@ def test_empty_train_split_is_an_error(tmp_path):
 def test_a_split_table_without_paths_is_an_error(tmp_path):
     with pytest.raises(ValueError, match=r"missing \['path'\]"):
         dataset.build(pd.DataFrame({"id": ["a"], "split": ["train"]}), tmp_path / "out", 1.0)
+
+
+def test_stats_record_the_contact_miss_rate_of_r_on_the_train_split(tiny_dataset, tmp_path, capsys):
+    """stats.json counts the train split's next-frame contacts and the share a graph of radius R misses, by the
+    same function as surrogate/contacts.py; a radius that misses many warns, naming R."""
+    from surrogate import cli, contacts
+    stats = json.loads(tiny_dataset["stats_path"].read_text())
+    table = pd.read_csv(tiny_dataset["splits"])
+    missed = total = 0
+    for path in table.loc[table["split"] == "train", "path"]:
+        traj = h5md.read(path)
+        m, c = contacts.contact_misses(traj.position, traj.radius, stats["connectivity_radius"], traj.kinematic)
+        missed, total = missed + m, total + c
+    assert total > 0 and stats["next_frame_contacts"] == total
+    assert stats["contact_miss_rate"] == pytest.approx(missed / total)
+    tight = dataset.build(table, tmp_path / "tight", 1.0e-3)        # no pair is closer than 1 mm
+    assert tight["contact_miss_rate"] == 1.0
+    assert cli.main(["dataset", "--scene", "slide", "--table", str(tiny_dataset["splits"]),
+                     "--out-dir", str(tmp_path / "cli"), "--connectivity-radius", "0.001"]) == 0
+    assert "WARNING: R = 0.001 misses 1e+02 % of the next frame's contacts" in capsys.readouterr().out
