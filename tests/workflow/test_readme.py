@@ -85,6 +85,7 @@ PROMISES = {
         SLIDE,
     "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
         {"tested_by": "tests/workflow/test_slurm.py"},
+    "results/slide/seeds.csv --config seeds=3": {"builds": ({"slide"}, "train_seed")},
     "results/slide/benchmark.csv": {"builds": ({"slide"}, "performance")},
     "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
     "results/slide/benchmark.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
