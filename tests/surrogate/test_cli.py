@@ -1,10 +1,13 @@
 """`graphdem train` takes the workflow's config keys: --scene, --config FILE and --set KEY=VALUE."""
 
+import json
+
 import pytest
 import yaml
 
 from generators import config
 from surrogate import checkpoint, cli
+from surrogate import derived as derived_rules
 
 
 def train(tiny, out, *options):
@@ -21,7 +24,17 @@ def test_train_takes_a_config_file_and_set_keys_as_the_workflow_does(tiny_datase
     meta = checkpoint.load(tmp_path / "model" / "last.pt")["json"]
     expected = config.load({"scale": "ci", "slide": {"model": {"history": 4, "latent": 8, "hidden": 16},
                                                       "train": {"lr": 5e-4, "seed": 3}}})["slide"]
-    assert meta["model"] == expected["model"] and meta["train"] == expected["train"]
+    assert meta["model"] == expected["model"]
+    # the checkpoint keeps the numbers training used: `auto` keys resolved from the stats, their rule beside them
+    derived = meta["train"].pop("derived")
+    assert set(derived) == {key for key, value in expected["train"].items() if value == "auto"} == \
+        {"noise_std", "ema_decay"}
+    for key in derived:
+        assert isinstance(meta["train"][key], float) and derived[key]["rule"]
+        expected["train"][key] = meta["train"][key]
+    stats = json.loads(tiny_dataset["stats_path"].read_text())
+    assert meta["train"]["noise_std"] == pytest.approx(derived_rules.noise_std(stats, expected["train"]["noise_ratio"]))
+    assert meta["train"] == expected["train"]
     assert meta["train"]["lr"] == 5e-4 and meta["model"]["latent"] == 8     # --set wins over the file
 
 

@@ -80,3 +80,16 @@ def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
         ["n/a", "n/a", "n/a", "n/a", "n/a", "0.013", "1", "n/a", "n/a", "n/a"]
     assert rows[("graphdem", "rollout MSE", "slide_0003")]["mse"] == "undefined"
     assert "<h2>Per sim</h2>" in page and "split test" in page and "K = 6" in page
+
+
+def test_a_one_tau_frame_set_is_shown_as_the_tau_not_a_float(tmp_path):
+    """The meteorite's ci window reaches only tau = 5 of Table 2's set: the column then holds '5' alone, which a
+    plain CSV read beside an empty cell would turn into 5.0."""
+    csv = tmp_path / "metrics.csv"
+    row = ("meteorite", "graphdem", "Imp Dep", "all", 91.5, "5", 90.0, NAN, 2.0, 1.83, 1, 5, 0, 0, NAN, "test",
+           NAN, 6)
+    mse = ("meteorite", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, 0.5, NAN, 0.5, 1, 5, NAN, 0, NAN, "test",
+           NAN, 6)                                  # no frame set: the column also holds an empty cell
+    pd.DataFrame([row, mse], columns=COLUMNS).to_csv(csv, index=False)
+    page = metrics_table.write(csv, tmp_path / "metrics.html", "meteorite: metrics").read_text()
+    assert cells(page)[("graphdem", "Imp Dep", "all")]["acc_frames"] == "5"

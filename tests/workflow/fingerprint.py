@@ -38,7 +38,8 @@ def positions(path: Path) -> str:
 
 
 def metrics(path: Path) -> list[dict]:
-    table = pd.read_csv(path).drop(columns=[c for c in PROVENANCE if c in pd.read_csv(path, nrows=0).columns])
+    table = pd.read_csv(path, dtype={"acc_frames": str})
+    table = table.drop(columns=[c for c in PROVENANCE if c in table.columns])
     return json.loads(table.to_json(orient="records", double_precision=15))
 
 

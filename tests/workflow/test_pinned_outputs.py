@@ -2,7 +2,10 @@
 the sweep tables and packing keys are identical, every sim's H5MD positions bit-identical, and metrics.csv
 identical (Graph-DEM's rows to a relative 1e-5), to those pinned when both engines were put on one
 contact law (no tangential dashpot in LAMMPS; the shear's constant kn = E r_mean, dt_safety 0.02 and
-viscous settling). Before that they were pinned across the scene x engine redesign."""
+viscous settling). Before that they were pinned across the scene x engine redesign. metrics.csv was re-pinned
+when it gained the article-style Acc, the DEM ensemble and plausibility rows and the scenes took the derived
+training defaults: the sweeps, packings, positions and every constant-velocity value stayed as they were (the
+old acc_percent is the new acc_pooled_percent)."""
 
 import json
 import math

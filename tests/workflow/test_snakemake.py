@@ -208,14 +208,27 @@ def test_changed_device_or_launcher_reruns_nothing(workdir):
                              config=(SMALL, *machine))) == {}
 
 
+def simulated(proc) -> list[str]:
+    """The raw folders a dry run's simulate jobs would write."""
+    text = proc.stdout + proc.stderr
+    return sorted(re.findall(r"^rule simulate:\n(?:    .*\n)*?    output: (\S+)", text, re.M))
+
+
 def test_changed_weak_friction_reruns_sims_but_not_the_packing(workdir):
-    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", weak_friction: 0.1}",)))
-    assert jobs.get("simulate") == 3 and jobs.get("convert") == 3 and "prepare" not in jobs
+    """Every sim reruns, and so does the DEM ensemble's rerun of the test sim (it shares the sims' parameters)."""
+    proc = snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", weak_friction: 0.1}",))
+    jobs = planned(proc)
+    assert jobs.get("simulate") == 4 and jobs.get("convert") == 4 and "prepare" not in jobs
+    assert simulated(proc) == ["results/slide/ensemble/raw/slide_0000",
+                               *(f"results/slide/raw/slide_000{i}" for i in range(3))]
 
 
 def test_added_sim_runs_only_that_sim(workdir):
-    jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL.replace("n_sims: 3", "n_sims: 4"),)))
-    assert jobs.get("simulate") == 1 and jobs.get("convert") == 1 and "prepare" not in jobs
+    """The fourth sim is the one the splits give to test, so its ensemble rerun comes with it; nothing else runs."""
+    proc = snakemake(workdir, TARGET, "-n", config=(SMALL.replace("n_sims: 3", "n_sims: 4"),))
+    jobs = planned(proc)
+    assert jobs.get("simulate") == 2 and jobs.get("convert") == 2 and "prepare" not in jobs
+    assert simulated(proc) == ["results/slide/ensemble/raw/slide_0003", "results/slide/raw/slide_0003"]
 
 
 def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
@@ -226,15 +239,16 @@ def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
     for cores, expected in (("-c2", 2), ("-c1", 1)):
         proc = snakemake(workdir, TARGET, "-n", "-p", cores, config=(ranks.replace("n_sims: 3", "n_sims: 4"),))
         jobs = planned(proc)
-        assert jobs.get("simulate") == 1 and "prepare" not in jobs
-        job = (proc.stdout + proc.stderr).split("rule simulate:")[1].split("\nrule ")[0]
-        assert ("threads: 2" in job) == (expected == 2), job
-        assert f"--ranks {expected} >" in job, job
+        assert jobs.get("simulate") == 2 and "prepare" not in jobs          # the new sim and its ensemble rerun
+        for job in (proc.stdout + proc.stderr).split("rule simulate:")[1:]:
+            job = job.split("\nrule ")[0]
+            assert ("threads: 2" in job) == (expected == 2), job
+            assert f"--ranks {expected} >" in job, job
 
 
 def test_changed_stiffness_resettles_the_packing(workdir):
     jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", young: 5.0e9}",)))
-    assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3
+    assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3 + 1                # the sims and the ensemble's
 
 
 @pytest.mark.parametrize("override, expected", [
@@ -349,7 +363,7 @@ def test_scene_outputs(ci_results, scene, dim, metrics):
     res = ci_results / scene
     stats = json.loads((res / "dataset" / "stats.json").read_text())
     assert stats["dim"] == dim and stats["n_types"] == 2
-    table = pd.read_csv(res / "metrics.csv")
+    table = pd.read_csv(res / "metrics.csv", dtype={"acc_frames": str})      # a one-tau list reads as text
     assert metrics | {"rollout MSE"} <= set(table["metric"])
     mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index("method")["mse"]
     assert np.isfinite(mse["graphdem"]) and mse["graphdem"] > 0 and np.isfinite(mse["constant_velocity"])
