@@ -1,10 +1,16 @@
 """Contact correction: too-deep overlaps are pushed apart to the allowed one, kinematic particles stay."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
+from generators.blowup import overlap_fractions as overlap_fractions_np
+from surrogate import runtime
+from surrogate.batched import rollout_batch
 from surrogate.correction import correct_overlaps
+from surrogate.rollout import rollout
 
 
 def overlap_fractions(x: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
@@ -109,3 +115,87 @@ def test_a_single_or_resting_set_is_returned_unchanged():
     x = np.array([[0.0, 0.0]])
     out, found = correct_overlaps(torch.tensor(x), torch.ones(1), torch.ones(1, dtype=torch.bool), 0.0, 3)
     assert found == 0 and np.array_equal(out.numpy(), x)
+
+
+RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
+                     sleep_speed=None, keep_in_domain=False, compile=False)
+
+
+def test_runtime_takes_contact_correction_as_an_optional_key():
+    assert RT.contact_correction is None
+    assert runtime.Runtime.from_config(RT.as_dict()) == RT
+    legacy = {key: value for key, value in RT.as_dict().items() if key != "contact_correction"}
+    assert runtime.Runtime.from_config(legacy) == RT                     # a config written before the switch
+    on = runtime.Runtime.from_config({**RT.as_dict(), "contact_correction": {"allowed_overlap": 0.01, "iterations": 5}})
+    assert on.contact_correction == {"allowed_overlap": 0.01, "iterations": 5}
+    with pytest.raises(ValueError, match="exactly the keys allowed_overlap, iterations"):
+        replace(RT, contact_correction={"allowed_overlap": 0.01, "iteration": 5})
+    with pytest.raises(ValueError, match="iterations = 0"):
+        replace(RT, contact_correction={"allowed_overlap": 0.01, "iterations": 0})
+    with pytest.raises(ValueError, match="allowed_overlap = -1"):
+        replace(RT, contact_correction={"allowed_overlap": -1, "iterations": 3})
+
+
+def max_overlap(position: np.ndarray, sim, start: int) -> float:
+    """The largest overlap / smaller radius over the frames from ``start``."""
+    radius, kinematic = np.asarray(sim.traj.radius, float), sim.kinematic.numpy()
+    return max(float(overlap_fractions_np(np.asarray(x, float), radius, kinematic).max(initial=0.0))
+               for x in position[start:])
+
+
+@pytest.mark.engine
+def test_a_rollout_with_the_switch_keeps_overlaps_at_the_allowed_one(untrained):
+    """A model at rest (no acceleration) started from a history whose moving particles are squeezed
+    towards their centre: off, the overlaps stay; on, every predicted frame is within the allowed one."""
+    simulator, sim = untrained
+    with torch.no_grad():
+        simulator.acceleration_std.mul_(1e-6)
+        simulator.acceleration_mean.zero_()
+    k = simulator.history
+    moving = ~sim.kinematic
+    frame = sim.position[0].clone()
+    centre = frame[moving].mean(dim=0)
+    frame[moving] = centre + 0.85 * (frame[moving] - centre)
+    start = frame.repeat(k, 1, 1)
+    allowed = 0.02
+    off = rollout(simulator, sim, runtime=RT, start=start)
+    on_rt = replace(RT, contact_correction={"allowed_overlap": allowed, "iterations": 2000})
+    on = rollout(simulator, sim, runtime=on_rt, start=start)
+    assert off.first_nonfinite is None and on.first_nonfinite is None
+    assert max_overlap(off.position, sim, k) > 0.2
+    assert max_overlap(on.position, sim, k) <= allowed + 1e-3
+    assert off.timing["corrected"] == 0 and on.timing["corrected"] > 0
+    assert np.all(on.position[:, sim.kinematic.numpy()] == off.position[:, sim.kinematic.numpy()])
+
+
+@pytest.mark.engine
+def test_the_switch_off_or_idle_leaves_the_rollout_bit_identical(untrained):
+    """Off, the rollout is the one without the switch; on with an overlap allowance no pair reaches, too."""
+    simulator, sim = untrained
+    reference = rollout(simulator, sim, runtime=RT)
+    idle = rollout(simulator, sim, runtime=replace(RT, contact_correction={"allowed_overlap": 1e6, "iterations": 3}))
+    np.testing.assert_array_equal(idle.position, reference.position)
+    assert idle.timing["corrected"] == 0
+    walls = replace(RT, keep_in_domain=True)
+    batch = rollout_batch(simulator, [sim, sim], walls)
+    single = rollout(simulator, sim, runtime=walls)
+    assert all(b.timing["corrected"] == 0 for b in batch)
+    np.testing.assert_allclose(batch[0].position, single.position, rtol=0, atol=1e-5)
+
+
+@pytest.mark.engine
+def test_batched_rollouts_correct_each_sim(untrained):
+    simulator, sim = untrained
+    with torch.no_grad():
+        simulator.acceleration_std.mul_(1e-6)
+        simulator.acceleration_mean.zero_()
+    moving = ~sim.kinematic
+    frame = sim.position[0].clone()
+    centre = frame[moving].mean(dim=0)
+    frame[moving] = centre + 0.85 * (frame[moving] - centre)
+    squeezed = replace(sim, position=frame.repeat(sim.n_frames, 1, 1))
+    on_rt = replace(RT, contact_correction={"allowed_overlap": 0.02, "iterations": 2000})
+    batch = rollout_batch(simulator, [squeezed, sim], on_rt)
+    alone = rollout(simulator, squeezed, runtime=on_rt)
+    assert batch[0].timing["corrected"] == alone.timing["corrected"] > 0
+    assert max_overlap(batch[0].position, sim, simulator.history) <= 0.02 + 1e-3
