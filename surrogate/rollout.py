@@ -129,8 +129,9 @@ def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Ten
                                                      counts["clamped"])
     if runtime.contact_correction is not None:
         box = (simulator.lower, simulator.upper) if runtime.keep_in_domain else (None, None)
-        position, found = correct_overlaps(position, radius, moving, float(runtime.contact_correction["allowed_overlap"]),
-                                           int(runtime.contact_correction["iterations"]), *box)
+        settings = runtime.contact_correction
+        position, found = correct_overlaps(position, radius, moving, float(settings["allowed_overlap"]),
+                                           int(settings["iterations"]), *box)
         counts["corrected"] += found
     return position
 

@@ -42,7 +42,8 @@ def test_out_of_range_names_key_and_bounds():
 def test_contact_correction_is_null_or_its_two_keys():
     assert config.load()["slide"]["runtime"]["contact_correction"] is None
     on = {"allowed_overlap": 0.01, "iterations": 20}
-    assert config.load({"slide": {"runtime": {"contact_correction": on}}})["slide"]["runtime"]["contact_correction"] == on
+    runtime = config.load({"slide": {"runtime": {"contact_correction": on}}})["slide"]["runtime"]
+    assert runtime["contact_correction"] == on
     with pytest.raises(config.ConfigError, match=r"unknown config key 'slide\.runtime\.contact_correction\.iteration'.*"
                                                  r"allowed_overlap, iterations"):
         config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": 0.01, "iteration": 20}}}})
