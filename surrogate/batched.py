@@ -2,7 +2,8 @@
 
 Every sim keeps its own radius graph (built per sim as :func:`surrogate.rollout.prepare_step`
 builds it, so no edge joins two sims), its own kinematic particles (their next position is its
-data's), its own ``keep_in_domain`` correction and its own non-finite detection. The graphs of a
+data's), its own ``keep_in_domain`` and ``contact_correction`` corrections (with its own particle
+radii; :func:`surrogate.rollout.correct_step`) and its own non-finite detection. The graphs of a
 step are stacked with offset edge indices (:func:`surrogate.simulator.stack_graphs`), the network
 runs once on the union, and its output is split back per sim. Each message-passing round only
 gathers along edges and every MLP works row by row, so each sim's prediction equals its single
@@ -20,7 +21,7 @@ import time
 import torch
 
 from surrogate import devices, samples
-from surrogate.rollout import Rollout, finish_step, keep_in_domain, new_counts, prepare_step, step_timing
+from surrogate.rollout import Rollout, correct_step, finish_step, new_counts, particle_radii, prepare_step, step_timing
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
 from surrogate.simulator import LearnedSimulator, stack_graphs
@@ -56,6 +57,7 @@ def rollout_batch(simulator: LearnedSimulator, sims: list[Sim], runtime: Runtime
         positions.append(frames)
     props = [None if sim.props is None else sim.props.to(dtype) for sim in sims]
     counts = [new_counts() for _ in sims]
+    radii = [particle_radii(sim, runtime, dtype, device) for sim in sims]
     first_bad: list[int | None] = [None] * len(sims)
     t_graph = [0.0] * len(sims)
     t_network = 0.0
@@ -86,10 +88,7 @@ def rollout_batch(simulator: LearnedSimulator, sims: list[Sim], runtime: Runtime
             if not torch.isfinite(nxt).all():
                 first_bad[i] = t
                 continue
-            if runtime.keep_in_domain:
-                nxt, counts[i]["clamped"] = keep_in_domain(nxt, ~sims[i].kinematic, simulator.lower,
-                                                           simulator.upper, counts[i]["clamped"])
-            positions[i][t] = nxt
+            positions[i][t] = correct_step(nxt, ~sims[i].kinematic, radii[i], runtime, simulator, counts[i])
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     size = len(sims)

@@ -276,8 +276,8 @@ def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True)
                    help="score sims of another scene (or other kinematic species) than the checkpoint was trained on")
     p.add_argument("--runtime-json", type=_json,
                    help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
-                        "precision, sleep_speed, keep_in_domain, compile; docs/performance.md); default: compute as in "
-                        "training")
+                        "precision, sleep_speed, keep_in_domain, compile, optionally contact_correction; "
+                        "docs/performance.md); default: compute as in training")
     _device(p, "auto")
 
 

@@ -3,6 +3,12 @@
 Kinematic particles are never predicted: at every step their positions are taken from the data.
 A rollout that produces a non-finite position stops there; the remaining frames are NaN and the
 first bad frame is reported, never hidden.
+
+After the network's step, the runtime's corrections apply to the moving particles in this order:
+``keep_in_domain`` puts the particles that left the box back on its faces, then
+``contact_correction`` pushes too-deep overlaps apart (keeping the particles in the box when
+``keep_in_domain`` is on; :mod:`surrogate.correction`). Both act on the frame that the next step
+reads, so the next step's velocities (position differences) are the corrected ones.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from generators import h5md
 from surrogate import devices, samples
+from surrogate.correction import correct_overlaps
 from surrogate.graph import radius_graph
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
@@ -103,6 +110,32 @@ def finish_step(simulator: LearnedSimulator, step: Step, acceleration: torch.Ten
     return nxt
 
 
+def particle_radii(sim: Sim, runtime: Runtime | None, dtype: torch.dtype, device: torch.device) -> torch.Tensor | None:
+    """[N] radii of the sim's particles (its H5MD ``radius``) where the runtime corrects contacts, else None."""
+    if runtime is None or runtime.contact_correction is None:
+        return None
+    return torch.as_tensor(np.asarray(sim.traj.radius, np.float64), dtype=dtype, device=device)
+
+
+def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Tensor | None, runtime: Runtime | None,
+                 simulator: LearnedSimulator, counts: dict) -> torch.Tensor:
+    """The runtime's corrections of one predicted frame (module docstring): ``keep_in_domain``, then
+    ``contact_correction`` (``radius`` from :func:`particle_radii`); ``counts`` gets the particles put
+    back into the box and the pairs pushed apart added."""
+    if runtime is None:
+        return position
+    if runtime.keep_in_domain:
+        position, counts["clamped"] = keep_in_domain(position, moving, simulator.lower, simulator.upper,
+                                                     counts["clamped"])
+    if runtime.contact_correction is not None:
+        box = (simulator.lower, simulator.upper) if runtime.keep_in_domain else (None, None)
+        settings = runtime.contact_correction
+        position, found = correct_overlaps(position, radius, moving, float(settings["allowed_overlap"]),
+                                           int(settings["iterations"]), *box)
+        counts["corrected"] += found
+    return position
+
+
 def keep_in_domain(position: torch.Tensor, moving: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor,
                    clamped: int = 0) -> tuple[torch.Tensor, int]:
     """``position`` [N, D] with every moving particle outside the box ``[lower, upper]`` put back on
@@ -148,6 +181,7 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     props = None if sim.props is None else sim.props.to(dtype)
     counts = new_counts()
     moving = ~sim.kinematic
+    radius = particle_radii(sim, runtime, dtype, device)
     first_bad = None
     t_graph = t_network = 0.0
     start_clock = time.perf_counter()
@@ -176,9 +210,7 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
-        if runtime is not None and runtime.keep_in_domain:
-            nxt, counts["clamped"] = keep_in_domain(nxt, moving, simulator.lower, simulator.upper, counts["clamped"])
-        positions[t] = nxt
+        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts)
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
@@ -187,14 +219,16 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
 
 def new_counts() -> dict:
     """Zeroed per-rollout counters: sleeping particles, graph nodes, edges and decoded nodes summed over the
-    steps, and particles put back into the box."""
-    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0}
+    steps, particles put back into the box, and particle pairs pushed apart by the contact correction."""
+    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0, "corrected": 0}
 
 
 def step_timing(counts: dict, steps: int) -> dict:
-    """A rollout's ``timing``: every count per computed step, and the particle-steps put back into the box."""
+    """A rollout's ``timing``: every count per computed step, the particle-steps put back into the box
+    and the pair-steps pushed apart by the contact correction."""
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
     timing["clamped"] = counts["clamped"]
+    timing["corrected"] = counts["corrected"]
     return timing
 
 

@@ -32,11 +32,17 @@ one's measured effect):
   input kind (dtype, with or without properties or decoded subsets) compiles, which takes seconds
   to a minute: it pays only over many rollouts in one process (``python -m surrogate.bench_rollout``
   measures both).
+* ``contact_correction`` (not exact; null turns it off): ``{allowed_overlap, iterations}``. After
+  every predicted step (and after ``keep_in_domain``), pairs that overlap by more than
+  ``allowed_overlap`` times the smaller radius are pushed apart along their centre line, in at most
+  ``iterations`` Jacobi sweeps (:mod:`surrogate.correction` gives the rule). The next step's
+  velocities are differences of the corrected positions. The rollout counts the pairs it corrected
+  (``corrected_pair_steps`` in the stability report), so the correction is never hidden.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import MISSING, asdict, dataclass, fields
 
 import torch
 
@@ -54,6 +60,7 @@ class Runtime:
     sleep_speed: float | None
     keep_in_domain: bool
     compile: bool
+    contact_correction: dict | None = None      # {allowed_overlap, iterations}; None: off
 
     def __post_init__(self):
         if self.precision not in PRECISIONS:
@@ -63,11 +70,14 @@ class Runtime:
                              "true: they leave out particles that have no edge to a predicted one")
         if self.sleep_speed is not None and not self.sleep_speed > 0:
             raise ValueError(f"runtime.sleep_speed = {self.sleep_speed!r}: a positive speed (m per frame) or null")
+        if self.contact_correction is not None:
+            check_contact_correction(self.contact_correction)
 
     @classmethod
     def from_config(cls, cfg: dict) -> Runtime:
         allowed = set(cls.__dataclass_fields__)
-        unknown, missing = set(cfg) - allowed, allowed - set(cfg)
+        required = {f.name for f in fields(cls) if f.default is MISSING}
+        unknown, missing = set(cfg) - allowed, required - set(cfg)
         if unknown or missing:
             raise ValueError(f"runtime config: unknown keys {sorted(unknown)}, missing keys {sorted(missing)}; "
                              f"the keys are {sorted(allowed)}")
@@ -84,6 +94,22 @@ class Runtime:
         """Context for the network's forward pass on ``device`` (bfloat16 autocast of that device's type,
         cpu or cuda, or nothing)."""
         return devices.autocast(torch.device(device), self.precision)
+
+
+CONTACT_CORRECTION_KEYS = ("allowed_overlap", "iterations")
+
+
+def check_contact_correction(cfg: dict) -> None:
+    """Refuse a ``runtime.contact_correction`` that is not ``{allowed_overlap: >= 0, iterations: >= 1}``."""
+    if not isinstance(cfg, dict) or set(cfg) != set(CONTACT_CORRECTION_KEYS):
+        raise ValueError(f"runtime.contact_correction = {cfg!r}: null or a mapping with exactly the keys "
+                         f"{', '.join(CONTACT_CORRECTION_KEYS)}")
+    overlap, iterations = cfg["allowed_overlap"], cfg["iterations"]
+    if isinstance(overlap, bool) or not isinstance(overlap, int | float) or not overlap >= 0:
+        raise ValueError(f"runtime.contact_correction.allowed_overlap = {overlap!r}: a fraction of the smaller "
+                         f"radius, >= 0")
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+        raise ValueError(f"runtime.contact_correction.iterations = {iterations!r}: an integer >= 1")
 
 
 def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:

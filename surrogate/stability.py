@@ -4,7 +4,8 @@ precisions (docs/performance.md, "Stability").
 A long rollout runs ``length`` times the recorded window; beyond the last recorded frame the
 kinematic particles stay where the data left them. It reports, never hides: the first
 non-finite frame, particles that leave the dataset's box (or, with the runtime switch
-``keep_in_domain``, how many times a particle was put back on a box face), the overlap
+``keep_in_domain``, how many times a particle was put back on a box face; with ``contact_correction``,
+how many times a pair was pushed apart), the overlap
 distribution and the kinetic energy per frame, the growth of the error per step over the recorded
 window, the largest speed at the end (a flow should come to rest, not drift or vibrate), and the
 first frame that leaves the physical envelope.
@@ -119,6 +120,7 @@ def long_rollout(simulator: LearnedSimulator, runtime: rt.Runtime, sim: Sim, len
         "escaped_particles": int(outside.any(axis=0).sum()),
         "first_escape_frame": int(np.argmax(outside.any(axis=1))) if outside.any() else np.nan,
         "clamped_particle_steps": int(result.timing.get("clamped", 0)),
+        "corrected_pair_steps": int(result.timing.get("corrected", 0)),
         "frames_over_overlap_limit": int((overlaps > max_overlap).sum()),
         "max_overlap": float(overlaps.max()) if len(overlaps) else np.nan,
         f"p{OVERLAP_QUANTILE}_overlap_last": float(frames[f"p{OVERLAP_QUANTILE}_overlap"].iloc[-1]) if len(frames)

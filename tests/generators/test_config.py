@@ -39,6 +39,18 @@ def test_out_of_range_names_key_and_bounds():
         config.load({"slide": {"restitution": 1.5}})
 
 
+def test_contact_correction_is_null_or_its_two_keys():
+    assert config.load()["slide"]["runtime"]["contact_correction"] is None
+    on = {"allowed_overlap": 0.01, "iterations": 20}
+    runtime = config.load({"slide": {"runtime": {"contact_correction": on}}})["slide"]["runtime"]
+    assert runtime["contact_correction"] == on
+    with pytest.raises(config.ConfigError, match=r"unknown config key 'slide\.runtime\.contact_correction\.iteration'.*"
+                                                 r"allowed_overlap, iterations"):
+        config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": 0.01, "iteration": 20}}}})
+    with pytest.raises(config.ConfigError, match=r"contact_correction\.allowed_overlap' = -0\.1.*minimum of 0"):
+        config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": -0.1, "iterations": 20}}}})
+
+
 def test_unknown_scale_lists_allowed_scales():
     with pytest.raises(config.ConfigError, match=r"'scale' = 'huge'.*\['ci', 'default', 'paper'\]"):
         config.load({"scale": "huge"})

@@ -1,0 +1,201 @@
+"""Contact correction: too-deep overlaps are pushed apart to the allowed one, kinematic particles stay."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from generators.blowup import overlap_fractions as overlap_fractions_np
+from surrogate import runtime
+from surrogate.batched import rollout_batch
+from surrogate.correction import correct_overlaps
+from surrogate.rollout import rollout
+
+
+def overlap_fractions(x: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
+    """(r_i + r_j - d) / min(r_i, r_j) of every pair i < j (negative: apart)."""
+    i, j = torch.triu_indices(len(x), len(x), offset=1)
+    d = (x[i] - x[j]).norm(dim=-1)
+    return (r[i] + r[j] - d) / torch.minimum(r[i], r[j])
+
+
+def test_two_equal_discs_are_separated_to_the_allowed_overlap_around_their_centre_of_mass():
+    x = torch.tensor([[0.0, 0.0], [1.2, 1.6]], dtype=torch.float64)        # d = 2, r = 1.5 each: overlap 1
+    r = torch.tensor([1.5, 1.5], dtype=torch.float64)
+    out, found = correct_overlaps(x, r, torch.tensor([True, True]), allowed_overlap=0.1, iterations=1)
+    assert found == 1
+    assert float((out[1] - out[0]).norm()) == pytest.approx(3.0 - 0.1 * 1.5, abs=1e-12)     # d = 2.85
+    torch.testing.assert_close(out.mean(dim=0), x.mean(dim=0))
+    torch.testing.assert_close(out[1] - out[0], (x[1] - x[0]) * 2.85 / 2.0)                  # along the centre line
+    torch.testing.assert_close(x, torch.tensor([[0.0, 0.0], [1.2, 1.6]], dtype=torch.float64))  # input untouched
+
+
+def test_a_kinematic_partner_stays_and_the_moving_one_takes_the_whole_push():
+    x = torch.tensor([[0.0, 0.0], [1.0, 0.0]], dtype=torch.float64)
+    r = torch.tensor([1.0, 0.5], dtype=torch.float64)                        # overlap 0.5 = 1 smaller radius
+    out, found = correct_overlaps(x, r, torch.tensor([False, True]), allowed_overlap=0.0, iterations=1)
+    assert found == 1
+    torch.testing.assert_close(out[0], x[0], rtol=0, atol=0)
+    torch.testing.assert_close(out[1], torch.tensor([1.5, 0.0], dtype=torch.float64))
+
+
+def test_unequal_moving_discs_share_the_push_inversely_to_their_mass():
+    x = torch.tensor([[0.0, 0.0], [2.0, 0.0]], dtype=torch.float64)
+    r = torch.tensor([2.0, 1.0], dtype=torch.float64)                        # masses 4 : 1 in 2D, excess 1
+    out, _ = correct_overlaps(x, r, torch.tensor([True, True]), allowed_overlap=0.0, iterations=1)
+    torch.testing.assert_close(out, torch.tensor([[-0.2, 0.0], [2.8, 0.0]], dtype=torch.float64))
+
+
+def test_separated_and_allowed_pairs_do_not_move():
+    x = torch.tensor([[0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [0.0, 1.95, 0.0]])    # apart; overlap 0.05 < 0.1 allowed
+    r = torch.ones(3)
+    out, found = correct_overlaps(x, r, torch.ones(3, dtype=torch.bool), allowed_overlap=0.1, iterations=5)
+    assert found == 0
+    assert torch.equal(out, x)
+
+
+def test_a_3d_cluster_converges_below_the_allowed_overlap():
+    generator = torch.Generator().manual_seed(0)
+    x = torch.rand((40, 3), generator=generator, dtype=torch.float64) * 3.0    # 40 particles in a 3 m cube
+    r = 0.4 + 0.2 * torch.rand(40, generator=generator, dtype=torch.float64)
+    moving = torch.ones(40, dtype=torch.bool)
+    moving[:4] = False
+    before = overlap_fractions(x, r).max()
+    out, found = correct_overlaps(x, r, moving, allowed_overlap=0.01, iterations=200)
+    assert before > 0.5 and found > 10
+    assert float(overlap_fractions(out, r).max()) < 0.01 + 1e-3
+    torch.testing.assert_close(out[:4], x[:4], rtol=0, atol=0)
+
+
+def test_a_3d_tetrahedral_cluster_converges_in_20_iterations():
+    x = torch.tensor([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0], [0.75, 1.3, 0.0], [0.75, 0.43, 1.22]], dtype=torch.float64)
+    r = torch.ones(4, dtype=torch.float64)                                   # every pair overlaps about 0.5 radii
+    assert float(overlap_fractions(x, r).min()) > 0.49
+    out, found = correct_overlaps(x, r, torch.ones(4, dtype=torch.bool), allowed_overlap=0.01, iterations=20)
+    assert found == 6
+    assert float(overlap_fractions(out, r).max()) < 0.01 + 1e-6
+
+
+def test_a_3d_chain_against_a_kinematic_wall_converges():
+    x = torch.tensor([[0.0, 0.0, 0.0], [1.5, 0.1, 0.0], [3.0, 0.0, 0.1], [4.5, -0.1, 0.0]], dtype=torch.float64)
+    r = torch.ones(4, dtype=torch.float64)                                   # each neighbour overlaps 0.5 radii
+    moving = torch.tensor([False, True, True, True])
+    out, _ = correct_overlaps(x, r, moving, allowed_overlap=0.01, iterations=40)
+    assert float(overlap_fractions(out, r).max()) < 0.01 + 1e-3
+    assert torch.equal(out[0], x[0])
+
+
+def test_coincident_particles_give_no_nan():
+    x = torch.tensor([[0.5, 0.5], [0.5, 0.5], [0.5, 0.5]])
+    r = torch.full((3,), 0.1)
+    out, found = correct_overlaps(x, r, torch.tensor([True, True, False]), allowed_overlap=0.0, iterations=1)
+    assert found == 3 and bool(torch.isfinite(out).all())
+    assert not torch.equal(out[0], out[1]) and torch.equal(out[2], x[2])
+
+
+def test_the_box_keeps_pushed_particles_in():
+    x = torch.tensor([[0.0, 0.5], [0.1, 0.5]], dtype=torch.float64)
+    r = torch.full((2,), 0.1, dtype=torch.float64)
+    out, _ = correct_overlaps(x, r, torch.tensor([True, True]), 0.0, 50, torch.zeros(2, dtype=torch.float64),
+                              torch.ones(2, dtype=torch.float64))
+    assert float(out[:, 0].min()) >= 0.0
+    assert float((out[1] - out[0]).norm()) == pytest.approx(0.2, abs=1e-6)
+
+
+def test_bad_settings_are_refused():
+    x, r, moving = torch.zeros((2, 2)), torch.ones(2), torch.ones(2, dtype=torch.bool)
+    with pytest.raises(ValueError, match="allowed_overlap = -0.1"):
+        correct_overlaps(x, r, moving, -0.1, 1)
+    with pytest.raises(ValueError, match="iterations = 0"):
+        correct_overlaps(x, r, moving, 0.1, 0)
+
+
+def test_a_single_or_resting_set_is_returned_unchanged():
+    x = np.array([[0.0, 0.0]])
+    out, found = correct_overlaps(torch.tensor(x), torch.ones(1), torch.ones(1, dtype=torch.bool), 0.0, 3)
+    assert found == 0 and np.array_equal(out.numpy(), x)
+
+
+RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
+                     sleep_speed=None, keep_in_domain=False, compile=False)
+
+
+def test_runtime_takes_contact_correction_as_an_optional_key():
+    assert RT.contact_correction is None
+    assert runtime.Runtime.from_config(RT.as_dict()) == RT
+    legacy = {key: value for key, value in RT.as_dict().items() if key != "contact_correction"}
+    assert runtime.Runtime.from_config(legacy) == RT                     # a config written before the switch
+    on = runtime.Runtime.from_config({**RT.as_dict(), "contact_correction": {"allowed_overlap": 0.01, "iterations": 5}})
+    assert on.contact_correction == {"allowed_overlap": 0.01, "iterations": 5}
+    with pytest.raises(ValueError, match="exactly the keys allowed_overlap, iterations"):
+        replace(RT, contact_correction={"allowed_overlap": 0.01, "iteration": 5})
+    with pytest.raises(ValueError, match="iterations = 0"):
+        replace(RT, contact_correction={"allowed_overlap": 0.01, "iterations": 0})
+    with pytest.raises(ValueError, match="allowed_overlap = -1"):
+        replace(RT, contact_correction={"allowed_overlap": -1, "iterations": 3})
+
+
+def max_overlap(position: np.ndarray, sim, start: int) -> float:
+    """The largest overlap / smaller radius over the frames from ``start``."""
+    radius, kinematic = np.asarray(sim.traj.radius, float), sim.kinematic.numpy()
+    return max(float(overlap_fractions_np(np.asarray(x, float), radius, kinematic).max(initial=0.0))
+               for x in position[start:])
+
+
+@pytest.mark.engine
+def test_a_rollout_with_the_switch_keeps_overlaps_at_the_allowed_one(untrained):
+    """A model at rest (no acceleration) started from a history whose moving particles are squeezed
+    towards their centre: off, the overlaps stay; on, every predicted frame is within the allowed one."""
+    simulator, sim = untrained
+    with torch.no_grad():
+        simulator.acceleration_std.mul_(1e-6)
+        simulator.acceleration_mean.zero_()
+    k = simulator.history
+    moving = ~sim.kinematic
+    frame = sim.position[0].clone()
+    centre = frame[moving].mean(dim=0)
+    frame[moving] = centre + 0.85 * (frame[moving] - centre)
+    start = frame.repeat(k, 1, 1)
+    allowed = 0.02
+    off = rollout(simulator, sim, runtime=RT, start=start)
+    on_rt = replace(RT, contact_correction={"allowed_overlap": allowed, "iterations": 2000})
+    on = rollout(simulator, sim, runtime=on_rt, start=start)
+    assert off.first_nonfinite is None and on.first_nonfinite is None
+    assert max_overlap(off.position, sim, k) > 0.2
+    assert max_overlap(on.position, sim, k) <= allowed + 1e-3
+    assert off.timing["corrected"] == 0 and on.timing["corrected"] > 0
+    assert np.all(on.position[:, sim.kinematic.numpy()] == off.position[:, sim.kinematic.numpy()])
+
+
+@pytest.mark.engine
+def test_the_switch_off_or_idle_leaves_the_rollout_bit_identical(untrained):
+    """Off, the rollout is the one without the switch; on with an overlap allowance no pair reaches, too."""
+    simulator, sim = untrained
+    reference = rollout(simulator, sim, runtime=RT)
+    idle = rollout(simulator, sim, runtime=replace(RT, contact_correction={"allowed_overlap": 1e6, "iterations": 3}))
+    np.testing.assert_array_equal(idle.position, reference.position)
+    assert idle.timing["corrected"] == 0
+    walls = replace(RT, keep_in_domain=True)
+    batch = rollout_batch(simulator, [sim, sim], walls)
+    single = rollout(simulator, sim, runtime=walls)
+    assert all(b.timing["corrected"] == 0 for b in batch)
+    np.testing.assert_allclose(batch[0].position, single.position, rtol=0, atol=1e-5)
+
+
+@pytest.mark.engine
+def test_batched_rollouts_correct_each_sim(untrained):
+    simulator, sim = untrained
+    with torch.no_grad():
+        simulator.acceleration_std.mul_(1e-6)
+        simulator.acceleration_mean.zero_()
+    moving = ~sim.kinematic
+    frame = sim.position[0].clone()
+    centre = frame[moving].mean(dim=0)
+    frame[moving] = centre + 0.85 * (frame[moving] - centre)
+    squeezed = replace(sim, position=frame.repeat(sim.n_frames, 1, 1))
+    on_rt = replace(RT, contact_correction={"allowed_overlap": 0.02, "iterations": 2000})
+    batch = rollout_batch(simulator, [squeezed, sim], on_rt)
+    alone = rollout(simulator, squeezed, runtime=on_rt)
+    assert batch[0].timing["corrected"] == alone.timing["corrected"] > 0
+    assert max_overlap(batch[0].position, sim, simulator.history) <= 0.02 + 1e-3
