@@ -160,7 +160,8 @@ def platen_lines(setup: dem.Setup) -> list[str]:
     along = ["NULL" if a == platen.axis else "0.0" for a in range(3)]
     load = ["NULL"] * 3
     load[platen.axis] = "v_platen_load"
-    ramp = f"*min(1.0,step/{int(platen.ramp)})" if platen.ramp > 0 else ""
+    r = int(platen.ramp)
+    ramp = f"*(step/{r}*(step<{r})+(step>={r}))" if r > 0 else ""
     return [*group_lines(setup, platen.group, "platen"),
             f"set             group platen mass {fmt(float(platen.mass) / n)}",
             f'variable        platen_load equal "{fmt(float(platen.force) / n)}{ramp}"',

@@ -14,7 +14,8 @@ Species ids: 0 box (kinematic), 1 soil, 2 platen (kinematic).
 A sim runs in two phases: loading (``load_time`` s: the platen's external force ramps up linearly over
 its first half, the box is still), then shearing, which is the recorded window (frame 0 is its start).
 Per frame the H5MD file holds the observables ``shear_force`` (N, the x contact force the soil exerts
-on the held upper frame: the shear resistance, positive along the shear), ``shear_stress`` (its value
+on the held upper frame and on the platen, which is held in x with it, as a loading cap is in a shear
+box: the shear resistance, positive along the shear), ``shear_stress`` (its value
 over L W), ``shear_displacement`` (m, of the lower half), ``normal_stress`` (Pa, the z contact force
 of the soil on the platen over L W) and ``normal_displacement`` (m, the platen's z change since frame
 0; positive: dilation). Forces are instantaneous contact forces at the frame's step, in both engines.
@@ -171,11 +172,12 @@ def loaded(packing: dem.Particles, row: dict) -> dem.Particles:
 def observables(row: dict, position: np.ndarray, group_force: dict[str, np.ndarray],
                 groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The per-frame observables of a sim (module docstring) from its positions [T, N, 3], the contact
-    force [T, 3] on the upper half and on the platen, and the particle groups."""
+    force [T, 3] on the upper half and on the platen, and the particle groups. The shear force is the x
+    contact force on the upper half plus that on the platen (both held in x)."""
     length, width, _ = row["box"]
     area = length * width
     position = np.asarray(position, np.float64)
-    shear_force = np.asarray(group_force[UPPER], float)[:, 0]
+    shear_force = np.asarray(group_force[UPPER], float)[:, 0] + np.asarray(group_force[PLATEN_GROUP], float)[:, 0]
     lower_x = position[:, groups[LOWER], 0].mean(axis=1)
     platen_z = position[:, groups[PLATEN_GROUP], 2].mean(axis=1)
     return {"shear_force": shear_force, "shear_stress": shear_force / area,

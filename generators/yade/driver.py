@@ -4,7 +4,7 @@ Debian's ``yade -n -x`` runs generators/yade/scripts/graphdem_yade.py on a JSON 
 Setup; the script closes YADE's TCP prompt and XML-RPC server before anything else and reports any
 listening socket, which fails the run.
 
-Supported: 3D spheres; 2D discs as spheres of the disc's radius held in the plane (blocked z translation
+Supported: 3D spheres; a load Platen (a clump free along its axis, loaded by a permanent force); 2D discs as spheres of the disc's radius held in the plane (blocked z translation
 and x, y rotations) with a disc's mass rho pi r^2 and inertia m r^2 / 2 (unit thickness, the LAMMPS 2D
 convention); kinematic species (fixed, or moved at constant velocity by a Motion); planar walls
 (``utils.wall``); initial velocities; per-species overrides that lower the friction (and keep or zero
@@ -121,9 +121,16 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     process: ``ranks`` must be 1; ``threads`` OpenMP threads, YADE's ``-j``)."""
     _one_process(setup, ranks)
     r = setup.schedule
-    motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity)} for m in setup.motions]
+    motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity), "from_record": m.from_record}
+               for m in setup.motions]
     job = {"mode": "record", **_job(setup), "motions": motions, "start": r.start, "every": r.every,
-           "frames": r.frames}
+           "frames": r.frames, "force_groups": {name: setup.group(name).tolist() for name in setup.force_groups}}
+    if setup.platen is not None:
+        pl = setup.platen
+        if setup.dim != 3 or not np.all(setup.kinematic[setup.group(pl.group)]):
+            raise _unsupported(setup, "a platen outside 3D or of particles not of a kinematic species")
+        job["platen"] = {"mask": setup.group(pl.group).tolist(), "mass": pl.mass, "force": pl.force, "axis": pl.axis,
+                         "ramp": pl.ramp}
     workdir = Path(workdir)
     try:
         arrays, run = runner.run(job, workdir, "record", threads=threads)
@@ -135,7 +142,8 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     (workdir / "record.npz").unlink()
     frames = dem.Frames(position=arrays["position"], step=arrays["step"], time=arrays["time"], mass=arrays["mass"],
                         radius=p.radius, kinetic_energy=arrays["kinetic_energy"],
-                        kinematic_force=arrays["kinematic_force"])
+                        kinematic_force=arrays["kinematic_force"],
+                        group_force={name: arrays[f"group_force:{name}"] for name in setup.force_groups})
     return frames, _engine_run(run, setup, float(arrays["loop_seconds"]), float(arrays["runup_seconds"]))
 
 

@@ -6,9 +6,12 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
   (``NewtonIntegrator.damping``) or a viscous drag (``LinearDragEngine``) until the kinetic energy per
   moving sphere is below the tolerance or the time limit is reached; writes the final positions.
 - ``record``: each motion's spheres move at their constant velocity (fixed spheres not in a motion are
-  held), spheres with an initial ``velocity`` start with it; after ``start`` steps the positions of
-  every sphere are recorded every ``every`` steps, with the moving spheres' kinetic energy and the total
-  contact force on the fixed ones.
+  held; a motion ``from_record`` starts at the first recorded frame), spheres with an initial
+  ``velocity`` start with it; a ``platen`` (its spheres one clump of the given mass, free along one
+  axis only, pushed by a permanent force that ramps up in a staircase of up to 200 steps over ``ramp``
+  DEM steps) is loaded; after ``start`` steps the positions of every sphere are recorded every
+  ``every`` steps, with the moving spheres' kinetic energy, the total contact force on the fixed ones
+  and the contact force on each of the ``force_groups``.
 
 graphdem starts YADE's launcher without its TCP Python prompt and XML-RPC server (generators/yade/runner.py).
 As a second guard the script shuts down any socket server it finds at its start (counted in its output: 0)
@@ -100,11 +103,14 @@ def build(job):
     thickness."""
     kn, dim = job["kn"], job["dim"]
     overrides = {int(k): v for k, v in job.get("species_contacts", {}).items()}
+    platen = job.get("platen")
+    in_platen = platen["mask"] if platen else [False] * len(job["radius"])
     ids = []
-    for pos, r, fixed, species in zip(job["position"], job["radius"], job["fixed"], job["species"], strict=True):
+    for pos, r, fixed, species, clumped in zip(job["position"], job["radius"], job["fixed"], job["species"], in_platen,
+                                               strict=True):
         friction, rolling = overrides.get(int(species), (job["friction"], job["rolling_friction"]))
         mat = material(job, kn / r, friction, 0.5 * rolling * r)
-        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed))
+        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed) and not clumped)
         if dim == 2:
             mass = job["density"] * math.pi * r * r
             body.state.mass = mass
@@ -119,6 +125,8 @@ def build(job):
         centre = [0.0, 0.0, 0.0]
         centre[axis] = value
         O.bodies.append(utils.wall(tuple(centre), axis=axis, sense=sense, material=wall_mat))
+    if platen:
+        platen["clump"] = make_platen(platen, ids)
     free = [i for i, f in zip(ids, job["fixed"], strict=True) if not f]
     engines = [
         ForceResetter(),
@@ -132,6 +140,45 @@ def build(job):
     O.engines = engines
     O.dt = job["dt"]
     return ids
+
+
+def make_platen(platen, ids):
+    """The platen's spheres as one clump of the platen's mass, free along its axis only (the rotations
+    are blocked); returns the clump's id. Gravity acts on the clump's mass (NewtonIntegrator)."""
+    clump = O.bodies.clump([i for i, m in zip(ids, platen["mask"], strict=True) if m])
+    state = O.bodies[clump].state
+    state.mass = platen["mass"]
+    state.blockedDOFs = "".join(a for k, a in enumerate("xyz") if k != platen["axis"]) + "XYZ"
+    state.vel = (0.0, 0.0, 0.0)
+    return clump
+
+
+def load_platen(platen, fraction):
+    """The platen's permanent external force at ``fraction`` of its full value."""
+    force = [0.0, 0.0, 0.0]
+    force[platen["axis"]] = fraction * platen["force"]
+    O.forces.setPermF(platen["clump"], tuple(force))
+
+
+def run_up(job):
+    """The ``start`` steps before the first recorded frame; a platen's force ramps up over its first ``ramp``
+    steps in a staircase of up to 200 equal steps."""
+    platen, start = job.get("platen"), job["start"]
+    if not platen:
+        if start:
+            O.run(start, True)
+        return
+    ramp = min(int(platen.get("ramp", 0)), start)
+    chunk = max(1, int(math.ceil(ramp / 200))) if ramp else 0
+    done = 0
+    while done < ramp:
+        n = min(chunk, ramp - done)
+        load_platen(platen, (done + n) / ramp)
+        O.run(n, True)
+        done += n
+    load_platen(platen, 1.0)
+    if start > done:
+        O.run(start - done, True)
 
 
 def vector3(v):
@@ -191,15 +238,20 @@ def record(job, out):
     for i, v in zip(ids, job.get("velocity") or [], strict=False):
         if any(v):
             O.bodies[i].state.vel = vector3(v)
-    for motion in job["motions"]:
-        for i, moving in zip(ids, motion["mask"], strict=True):
-            if moving:
-                O.bodies[i].state.vel = vector3(motion["velocity"])
+    def move(motions):
+        for motion in motions:
+            for i, moving in zip(ids, motion["mask"], strict=True):
+                if moving:
+                    O.bodies[i].state.vel = vector3(motion["velocity"])
+
+    move([m for m in job["motions"] if not m.get("from_record")])
     runup = time.perf_counter()
-    if job["start"]:
-        O.run(job["start"], True)
+    run_up(job)
+    move([m for m in job["motions"] if m.get("from_record")])
     runup = time.perf_counter() - runup
     free = [not f for f in job["fixed"]]
+    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m] for name, mask in job.get("force_groups", {}).items()}
+    group_forces = {name: [] for name in groups}
     frames, steps, times, energies, forces = [], [], [], [], []
     loop = 0.0
     for f in range(job["frames"]):
@@ -212,7 +264,10 @@ def record(job, out):
         times.append(O.time)
         energies.append(kinetic_energy(ids, free))
         forces.append(force_on(ids, job["fixed"], job["dim"]))
+        for name, members in groups.items():
+            group_forces[name].append(sum((np.array(tuple(O.forces.f(i))) for i in members), np.zeros(3))[:job["dim"]])
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
+             **{f"group_force:{name}": np.stack(v) for name, v in group_forces.items()},
              mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
              kinematic_force=np.stack(forces), loop_seconds=loop,
              runup_seconds=runup)
