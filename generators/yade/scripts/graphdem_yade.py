@@ -96,6 +96,11 @@ def gravity_vector(job):
     return (g * math.sin(tilt), 0.0, -g * math.cos(tilt))
 
 
+# Collision masks: two kinematic spheres never interact (the collider's avoidSelfInteractionMask drops pairs
+# of the same mask that has its bit), as LAMMPS excludes kinematic type pairs; moving spheres meet everything.
+MOVING_MASK, KINEMATIC_MASK, SELF_AVOID = 0b001, 0b011, 0b010
+
+
 def build(job):
     """Bodies, walls and engines of the job. Each sphere has its own material with young = kn / r, so
     that two spheres meet with the job's constant kn whatever their radii; 2D discs are spheres held in
@@ -110,7 +115,8 @@ def build(job):
                                                strict=True):
         friction, rolling = overrides.get(int(species), (job["friction"], job["rolling_friction"]))
         mat = material(job, kn / r, friction, 0.5 * rolling * r)
-        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed) and not clumped)
+        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed) and not clumped,
+                            mask=KINEMATIC_MASK if fixed else MOVING_MASK)
         if dim == 2:
             mass = job["density"] * math.pi * r * r
             body.state.mass = mass
@@ -130,7 +136,7 @@ def build(job):
     free = [i for i, f in zip(ids, job["fixed"], strict=True) if not f]
     engines = [
         ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
+        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()], avoidSelfInteractionMask=SELF_AVOID),
         InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()], [Ip2_ViscElMat_ViscElMat_ViscElPhys()],
                         [Law2_ScGeom_ViscElPhys_Basic()]),
     ]
