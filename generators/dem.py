@@ -152,7 +152,9 @@ class Setup:
     box_lower: np.ndarray | None = None      # the data's box (H5MD); default lower/upper
     box_upper: np.ndarray | None = None
     platen: Platen | None = None
-    force_groups: tuple[str, ...] = ()       # groups whose summed contact force each frame reports (Frames)
+    force_groups: tuple[str, ...] = ()       # groups whose summed contact force each frame reports (Frames), the
+    force_samples: int = 1                   # mean over this many equally spaced steps of the frame interval,
+                                             # the last at the frame (a divisor of Record.every)
 
     @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:

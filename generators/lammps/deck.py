@@ -204,20 +204,35 @@ def force_lines(setup: dem.Setup) -> list[str]:
     axes = AXES[: setup.dim]
     lines = [f"compute         force kinematic reduce sum {' '.join('f' + a for a in axes)}"]
     columns = [f"c_force[{k + 1}]" for k in range(setup.dim)]
+    inputs = []
     for name in setup.force_groups:
-        columns += group_force_columns(setup, name)
+        inputs += _group_force_inputs(setup, name)
         if setup.platen is None or name != setup.platen.group:
             k = setup.force_groups.index(name)
             lines.append(f"compute         force{k} force{k} reduce sum {' '.join('f' + a for a in axes)}")
+    if inputs:
+        every, samples = setup.schedule.every, setup.force_samples
+        if every % samples or (samples > 1 and setup.schedule.start < every):
+            raise dem.UnsupportedSetup(f"{setup.name}: {samples} force samples in a frame interval of {every} steps "
+                                       f"(not a divisor), or before a run-up of {setup.schedule.start} steps")
+        lines.append(f"fix             groupforce all ave/time {every // samples} {samples} {every} {' '.join(inputs)}")
+        columns += [f"f_groupforce[{k + 1}]" for k in range(len(inputs))]
     return lines + ["thermo_style    custom step time c_ke c_erot " + " ".join(columns)]
 
 
-def group_force_columns(setup: dem.Setup, name: str) -> list[str]:
-    """The thermo columns of force group ``name``'s contact force: a platen's from its fix aveforce (the
-    sum before the fix changes it), any other group's from a reduce compute."""
+def _group_force_inputs(setup: dem.Setup, name: str) -> list[str]:
+    """The per-step values of force group ``name``'s contact force: a platen's from its fix aveforce (the sum
+    before the fix changes it), any other group's from a reduce compute."""
     if setup.platen is not None and name == setup.platen.group:
         return [f"f_platen_load[{a + 1}]" for a in range(setup.dim)]
     return [f"c_force{setup.force_groups.index(name)}[{a + 1}]" for a in range(setup.dim)]
+
+
+def group_force_columns(setup: dem.Setup, name: str) -> list[str]:
+    """The thermo columns of force group ``name``'s contact force, each the mean over Setup.force_samples
+    equally spaced steps of the frame interval ending at the frame (`fix ave/time`)."""
+    k = setup.force_groups.index(name)
+    return [f"f_groupforce[{k * setup.dim + a + 1}]" for a in range(setup.dim)]
 
 
 def record_deck(setup: dem.Setup) -> str:

@@ -18,7 +18,8 @@ on the held upper frame and on the platen, which is held in x with it, as a load
 box: the shear resistance, positive along the shear), ``shear_stress`` (its value
 over L W), ``shear_displacement`` (m, of the lower half), ``normal_stress`` (Pa, the z contact force
 of the soil on the platen over L W) and ``normal_displacement`` (m, the platen's z change since frame
-0; positive: dilation). Forces are instantaneous contact forces at the frame's step, in both engines.
+0; positive: dilation). A frame's forces are the mean over FORCE_SAMPLES equally spaced steps of the
+frame interval ending at the frame (frame 0: the last interval of the loading), in both engines.
 
 Geometry: the box's inner faces are the planes x = 0, x = L, y = 0, y = W and z = 0; wall sphere
 centres lie one wall radius outside them on a square grid of spacing ``wall_spacing`` radii.
@@ -40,6 +41,7 @@ LOWER = "lower"            # the packing's group of box spheres in the moving lo
 UPPER = "upper"            # the held upper half's box spheres (simulate only)
 PLATEN_GROUP = "platen"    # the platen's spheres (simulate only)
 PLATEN_CLEARANCE = 0.5     # wall radii between the platen's outer spheres and the box's inner faces
+FORCE_SAMPLES = 10        # the forces of a frame: the mean of 10 equally spaced steps of its interval
 OBSERVABLES = ("shear_force", "shear_stress", "shear_displacement", "normal_stress", "normal_displacement")
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
 SETTLE_CHECK = 0.005       # s of physical time between two checks of the settling energy
@@ -310,7 +312,7 @@ class Shear(Scene):
         step = dem_step(row, where=row["id"])
         dt = step[0]
         interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
-        every = max(1, int(round(interval / dt)))
+        every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
         start = every * int(math.ceil(row["load_time"] / (every * dt)))     # LAMMPS dumps on multiples of every
         speed = row["displacement"] / (every * dt * (row["frames"] - 1))
         box_lower, box_upper = domain(row, row["domain_displacement"])
@@ -319,7 +321,7 @@ class Shear(Scene):
         return self.setup(row, row["id"], loaded(packing, row), step, domain(row, row["displacement"]),
                           lambda dt: dem.Record(start=start, every=every, frames=row["frames"]),
                           motions=(dem.Motion(LOWER, (speed, 0.0, 0.0), from_record=True),), platen=platen,
-                          force_groups=(UPPER, PLATEN_GROUP), box_lower=box_lower, box_upper=box_upper)
+                          force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower, box_upper=box_upper)
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0],

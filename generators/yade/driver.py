@@ -116,6 +116,13 @@ def settle(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     return dem.Particles(arrays["position"], p.radius, p.species, p.groups), _engine_run(run, setup, None)
 
 
+def _force_samples(setup: dem.Setup) -> int:
+    if setup.schedule.every % setup.force_samples:
+        raise _unsupported(setup, f"{setup.force_samples} force samples in a frame interval of {setup.schedule.every} "
+                                  "steps (not a divisor)")
+    return int(setup.force_samples)
+
+
 def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
     """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps (one
     process: ``ranks`` must be 1; ``threads`` OpenMP threads, YADE's ``-j``)."""
@@ -124,7 +131,8 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity), "from_record": m.from_record}
                for m in setup.motions]
     job = {"mode": "record", **_job(setup), "motions": motions, "start": r.start, "every": r.every,
-           "frames": r.frames, "force_groups": {name: setup.group(name).tolist() for name in setup.force_groups}}
+           "frames": r.frames, "force_groups": {name: setup.group(name).tolist() for name in setup.force_groups},
+           "force_samples": _force_samples(setup)}
     if setup.platen is not None:
         pl = setup.platen
         if setup.dim != 3 or not np.all(setup.kinematic[setup.group(pl.group)]):

@@ -11,7 +11,8 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
   axis only, pushed by a permanent force that ramps up in a staircase of up to 200 steps over ``ramp``
   DEM steps) is loaded; after ``start`` steps the positions of every sphere are recorded every
   ``every`` steps, with the moving spheres' kinetic energy, the total contact force on the fixed ones
-  and the contact force on each of the ``force_groups``.
+  and the contact force on each of the ``force_groups`` (averaged over ``force_samples`` equally spaced
+  steps of the frame interval, the last at the frame; frame 0's over the run-up's last interval).
 
 graphdem starts YADE's launcher without its TCP Python prompt and XML-RPC server (generators/yade/runner.py).
 As a second guard the script shuts down any socket server it finds at its start (counted in its output: 0)
@@ -166,10 +167,10 @@ def load_platen(platen, fraction):
     O.forces.setPermF(platen["clump"], tuple(force))
 
 
-def run_up(job):
-    """The ``start`` steps before the first recorded frame; a platen's force ramps up over its first ``ramp``
-    steps in a staircase of up to 200 equal steps."""
-    platen, start = job.get("platen"), job["start"]
+def run_up(job, start):
+    """``start`` steps of the run-up before the first recorded frame; a platen's force ramps up over its first
+    ``ramp`` steps (at most ``start``) in a staircase of up to 200 equal steps."""
+    platen = job.get("platen")
     if not platen:
         if start:
             O.run(start, True)
@@ -251,27 +252,45 @@ def record(job, out):
                     O.bodies[i].state.vel = vector3(motion["velocity"])
 
     move([m for m in job["motions"] if not m.get("from_record")])
+    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m] for name, mask in job.get("force_groups", {}).items()}
+    samples, every = int(job.get("force_samples", 1)), job["every"]
+
+    def group_force():
+        return {name: sum((np.array(tuple(O.forces.f(i))) for i in members), np.zeros(3))[:job["dim"]]
+                for name, members in groups.items()}
+
+    def sampled(steps):
+        """Run ``steps`` steps in ``samples`` equal chunks; the group forces averaged over the chunks' ends."""
+        total = {name: np.zeros(job["dim"]) for name in groups}
+        for _ in range(samples):
+            O.run(steps // samples, True)
+            for name, value in group_force().items():
+                total[name] += value
+        return {name: value / samples for name, value in total.items()}
+
     runup = time.perf_counter()
-    run_up(job)
+    averaged = samples > 1 and job["start"] >= every
+    run_up(job, job["start"] - every if averaged else job["start"])
+    first = sampled(every) if averaged else group_force()
     move([m for m in job["motions"] if m.get("from_record")])
     runup = time.perf_counter() - runup
     free = [not f for f in job["fixed"]]
-    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m] for name, mask in job.get("force_groups", {}).items()}
     group_forces = {name: [] for name in groups}
     frames, steps, times, energies, forces = [], [], [], [], []
     loop = 0.0
     for f in range(job["frames"]):
+        now = first
         if f:
             start = time.perf_counter()
-            O.run(job["every"], True)
+            now = sampled(every)
             loop += time.perf_counter() - start
         frames.append(positions(ids, job["dim"]))
         steps.append(O.iter)
         times.append(O.time)
         energies.append(kinetic_energy(ids, free))
         forces.append(force_on(ids, job["fixed"], job["dim"]))
-        for name, members in groups.items():
-            group_forces[name].append(sum((np.array(tuple(O.forces.f(i))) for i in members), np.zeros(3))[:job["dim"]])
+        for name, value in now.items():
+            group_forces[name].append(value)
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
              **{f"group_force:{name}": np.stack(v) for name, v in group_forces.items()},
              mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
