@@ -3,7 +3,7 @@
 A half-size box (48 x 48 x 30 mm) of the default scale's soil spheres (radius 3.5-4.5 mm, about 150 soil
 spheres in five layers: the ci scale's spheres fill the box in two layers, too few for a shear band), one
 packing settled in LAMMPS and sheared in both engines at the softest modulus and the two ends of the
-normal stress range, 12 mm of shear in 12 frames after 20 ms of loading.
+normal stress range, 6 mm of shear (1/8 of the box) in 12 frames after 20 ms of loading.
 """
 
 import numpy as np
@@ -15,9 +15,9 @@ from generators.scenes import shear
 pytestmark = pytest.mark.engine
 
 OVERRIDES = {"box": [0.048, 0.048, 0.03], "radius": [0.0035, 0.0045], "wall_radius": 0.004, "platen_mass": 0.03,
-             "frames": 13, "sweep": {"n_young": 2, "n_normal_stress": 2, "displacements": [0.012]}}
+             "frames": 13, "sweep": {"n_young": 2, "n_normal_stress": 2, "displacements": [0.006]}}
 NORMAL_STRESS_TOLERANCE = 0.03      # the recorded window's mean normal stress within 3 % of the set value
-RATIO_AGREEMENT = 0.35              # LAMMPS and YADE peak ratios tau / sigma_n within 35 % of each other
+RATIO_AGREEMENT = 0.25              # LAMMPS and YADE peak ratios tau / sigma_n within 25 % of each other
 
 
 @pytest.fixture(scope="module")
@@ -98,3 +98,15 @@ def test_lammps_and_yade_agree_on_the_peak_ratio(runs):
         ratios = [shear.peak_shear_stress(runs[name][k][1].observables["shear_stress"]) / runs[name][k][0]["normal_stress"]
                   for name in ENGINES]
         assert abs(ratios[0] - ratios[1]) <= RATIO_AGREEMENT * max(ratios), ratios
+
+
+def test_report(runs, capsys):
+    """Not a check: the measured figures (run with -s to see them)."""
+    with capsys.disabled():
+        for name in ENGINES:
+            for row, traj in runs[name]:
+                o = traj.observables
+                print(f"{name} E={row['young']:g} sigma_n={row['normal_stress']:g}: mean normal stress "
+                      f"{o['normal_stress'].mean():.1f} Pa, peak tau {shear.peak_shear_stress(o['shear_stress']):.1f} Pa, "
+                      f"ratio {shear.peak_shear_stress(o['shear_stress']) / row['normal_stress']:.3f}, "
+                      f"final normal displacement {o['normal_displacement'][-1] * 1e3:.3f} mm")
