@@ -321,7 +321,8 @@ class Shear(Scene):
         return self.setup(row, row["id"], loaded(packing, row), step, domain(row, row["displacement"]),
                           lambda dt: dem.Record(start=start, every=every, frames=row["frames"]),
                           motions=(dem.Motion(LOWER, (speed, 0.0, 0.0), from_record=True),), platen=platen,
-                          force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower, box_upper=box_upper)
+                          force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
+                          box_upper=box_upper)
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0],

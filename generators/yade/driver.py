@@ -4,9 +4,12 @@ Debian's ``yade -n -x`` runs generators/yade/scripts/graphdem_yade.py on a JSON 
 Setup; the script closes YADE's TCP prompt and XML-RPC server before anything else and reports any
 listening socket, which fails the run.
 
-Supported: 3D spheres; a load Platen (a clump free along its axis, loaded by a permanent force); 2D discs as spheres of the disc's radius held in the plane (blocked z translation
+Supported: 3D spheres; 2D discs as spheres of the disc's radius held in the plane (blocked z translation
 and x, y rotations) with a disc's mass rho pi r^2 and inertia m r^2 / 2 (unit thickness, the LAMMPS 2D
-convention); kinematic species (fixed, or moved at constant velocity by a Motion); planar walls
+convention); kinematic species (fixed, or moved at constant velocity by a Motion, from step 0 or from the
+first recorded frame; two kinematic spheres never interact); a load Platen (one clump, free along its
+axis only, pushed by a permanent force; contact forces of force groups averaged over force_samples steps
+of each frame interval); planar walls
 (``utils.wall``); initial velocities; per-species overrides that lower the friction (and keep or zero
 the rolling friction); settling with
 Cundall's local damping or a viscous drag.

@@ -95,8 +95,8 @@ def test_a_higher_normal_stress_gives_a_higher_peak_shear_stress(runs, name):
 
 def test_lammps_and_yade_agree_on_the_peak_ratio(runs):
     for k in range(2):
-        ratios = [shear.peak_shear_stress(runs[name][k][1].observables["shear_stress"]) / runs[name][k][0]["normal_stress"]
-                  for name in ENGINES]
+        ratios = [shear.peak_shear_stress(traj.observables["shear_stress"]) / row["normal_stress"]
+                  for row, traj in (runs[name][k] for name in ENGINES)]
         assert abs(ratios[0] - ratios[1]) <= RATIO_AGREEMENT * max(ratios), ratios
 
 
@@ -106,7 +106,8 @@ def test_report(runs, capsys):
         for name in ENGINES:
             for row, traj in runs[name]:
                 o = traj.observables
+                peak = shear.peak_shear_stress(o["shear_stress"])
                 print(f"{name} E={row['young']:g} sigma_n={row['normal_stress']:g}: mean normal stress "
-                      f"{o['normal_stress'].mean():.1f} Pa, peak tau {shear.peak_shear_stress(o['shear_stress']):.1f} Pa, "
-                      f"ratio {shear.peak_shear_stress(o['shear_stress']) / row['normal_stress']:.3f}, "
+                      f"{o['normal_stress'].mean():.1f} Pa, peak tau {peak:.1f} Pa, "
+                      f"ratio {peak / row['normal_stress']:.3f}, "
                       f"final normal displacement {o['normal_displacement'][-1] * 1e3:.3f} mm")

@@ -252,7 +252,8 @@ def record(job, out):
                     O.bodies[i].state.vel = vector3(motion["velocity"])
 
     move([m for m in job["motions"] if not m.get("from_record")])
-    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m] for name, mask in job.get("force_groups", {}).items()}
+    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m]
+              for name, mask in job.get("force_groups", {}).items()}
     samples, every = int(job.get("force_samples", 1)), job["every"]
 
     def group_force():
