@@ -353,14 +353,14 @@ class Shear(Scene):
             raise ConfigError(f"config key 'shear.platen_mass' = {cfg['platen_mass']} kg weighs {weight:.4g} N, more "
                               f"than the smallest normal load ({min(cfg['sweep']['normal_stress'])} Pa x L x W = "
                               f"{min(cfg['sweep']['normal_stress']) * length * width:.4g} N): lighten the platen")
-        if PLATEN_CLEARANCE * cfg["wall_radius"] >= cfg["radius"][0]:
-            raise ConfigError(f"config key 'shear.wall_radius' = {cfg['wall_radius']} leaves a gap of "
-                              f"{PLATEN_CLEARANCE} wall radii between platen and box walls wider than the smallest "
-                              f"soil sphere ({cfg['radius'][0]} m)")
         if cfg["wall_radius"] * (cfg["wall_spacing"] / 2**0.5 - 1.0) >= cfg["radius"][0]:
             raise ConfigError(f"config keys 'shear.wall_radius' = {cfg['wall_radius']} and 'shear.wall_spacing' = "
                               f"{cfg['wall_spacing']} leave holes in the box walls wider than the smallest soil "
                               f"sphere ({cfg['radius'][0]} m): lower the spacing or raise the wall radius")
+        if PLATEN_CLEARANCE * cfg["wall_radius"] >= cfg["radius"][0]:
+            raise ConfigError(f"config key 'shear.wall_radius' = {cfg['wall_radius']} leaves a gap of "
+                              f"{PLATEN_CLEARANCE} wall radii between platen and box walls wider than the smallest "
+                              f"soil sphere ({cfg['radius'][0]} m)")
 
 
 SCENE = Shear()
