@@ -221,7 +221,19 @@ class ShearMetrics:
     names = ("Mean x",)
     sets = ("Above", "Below", "Failure Surface", "All")
     pair_names = tuple(f"{s} {k}" for s in sets for k in ("sum", "mean"))
-    units = {"Mean x": "m", **{name: "m" for name in pair_names}}
+    # DEM-only: from the sim's observables, not from positions, so the surrogate does not predict them (yet)
+    dem_names = ("Peak shear stress", "Peak stress ratio")
+    units = {"Mean x": "m", **{name: "m" for name in pair_names}, "Peak shear stress": "Pa", "Peak stress ratio": ""}
+
+    @classmethod
+    def dem_values(cls, traj) -> dict[str, float]:
+        """The DEM's peak shear stress (:func:`peak_shear_stress`) of a sim and its ratio to the set normal
+        stress; NaN where the file has no shear_stress observable (written before the load platen)."""
+        if "shear_stress" not in traj.observables:
+            return {name: float("nan") for name in cls.dem_names}
+        peak = peak_shear_stress(traj.observables["shear_stress"])
+        stress = float(traj.parameters.get("normal_stress", float("nan")))
+        return {"Peak shear stress": peak, "Peak stress ratio": peak / stress}
 
     @classmethod
     def for_trajectory(cls, traj, body_displacement: float | None = None) -> ShearMetrics:

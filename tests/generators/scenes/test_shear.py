@@ -170,3 +170,16 @@ def test_peak_shear_stress():
     assert shear.peak_shear_stress(tau) == 5.0
     assert shear.peak_shear_stress(tau, smooth=3) == pytest.approx(10.0 / 3)
     assert math.isnan(shear.peak_shear_stress(np.array([np.nan, np.nan])))
+
+
+def test_dem_peak_shear_stress_metric_from_the_observables():
+    from types import SimpleNamespace
+    traj = SimpleNamespace(observables={"shear_stress": np.array([0.0, 2.0e3, 4.0e3, 3.0e3])},
+                           parameters={"normal_stress": 1.0e4})
+    assert ShearMetrics.dem_values(traj) == {"Peak shear stress": 4.0e3, "Peak stress ratio": 0.4}
+    old = SimpleNamespace(observables={}, parameters={})
+    assert all(math.isnan(v) for v in ShearMetrics.dem_values(old).values())
+    from generators import crosscheck
+    assert crosscheck.metric_names("shear")[-2:] == ("Peak shear stress", "Peak stress ratio")
+    assert crosscheck.metric_names("meteorite") == tuple(__import__("generators.scenes.meteorite",
+                                                                    fromlist=["SCENE"]).SCENE.metrics.names)
