@@ -155,6 +155,8 @@ def make_platen(platen, ids):
     clump = O.bodies.clump([i for i, m in zip(ids, platen["mask"], strict=True) if m])
     state = O.bodies[clump].state
     state.mass = platen["mass"]
+    for i in O.bodies[clump].shape.members:          # each sphere M / N, as LAMMPS gives each platen atom
+        O.bodies[i].state.mass = platen["mass"] / len(O.bodies[clump].shape.members)
     state.blockedDOFs = "".join(a for k, a in enumerate("xyz") if k != platen["axis"]) + "XYZ"
     state.vel = (0.0, 0.0, 0.0)
     return clump
