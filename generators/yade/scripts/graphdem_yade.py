@@ -8,7 +8,7 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
 - ``record``: each motion's spheres move at their constant velocity (fixed spheres not in a motion are
   held; a motion ``from_record`` starts at the first recorded frame), spheres with an initial
   ``velocity`` start with it; a ``platen`` (its spheres one clump of the given mass, free along one
-  axis only, pushed by a permanent force that ramps up in a staircase of up to 200 steps over ``ramp``
+  axis only, pushed by a permanent force that ramps up in a staircase of 100 steps over ``ramp``
   DEM steps) is loaded; after ``start`` steps the positions of every sphere are recorded every
   ``every`` steps, with the moving spheres' kinetic energy, the total contact force on the fixed ones
   and the contact force on each of the ``force_groups`` (averaged over ``force_samples`` equally spaced
@@ -41,6 +41,7 @@ from yade.wrapper import (
     Law2_ScGeom_ViscElPhys_Basic,
     LinearDragEngine,
     NewtonIntegrator,
+    PyRunner,
     ViscElMat,
 )
 
@@ -169,25 +170,24 @@ def load_platen(platen, fraction):
     O.forces.setPermF(platen["clump"], tuple(force))
 
 
-def run_up(job, start):
-    """``start`` steps of the run-up before the first recorded frame; a platen's force ramps up over its first
-    ``ramp`` steps (at most ``start``) in a staircase of up to 200 equal steps."""
-    platen = job.get("platen")
-    if not platen:
-        if start:
-            O.run(start, True)
+def periodic(name, function, period):
+    """A PyRunner calling ``function`` every ``period`` steps: PyRunner runs its command in ``__main__``, so the
+    function is put there under ``name``. (Stopping a run for it would cost YADE's O.run wait, ~40 ms a call.)"""
+    import __main__
+    setattr(__main__, name, function)
+    O.engines = O.engines + [PyRunner(command=f"{name}()", iterPeriod=max(1, int(period)))]
+
+
+def ramp_platen(job):
+    """A platen's force ramping up linearly over its first ``ramp`` steps, updated every ramp / 100 steps (a
+    staircase of 100 steps), full from then on."""
+    platen = job["platen"]
+    ramp = int(platen.get("ramp", 0))
+    if ramp <= 0:
+        load_platen(platen, 1.0)
         return
-    ramp = min(int(platen.get("ramp", 0)), start)
-    chunk = max(1, int(math.ceil(ramp / 200))) if ramp else 0
-    done = 0
-    while done < ramp:
-        n = min(chunk, ramp - done)
-        load_platen(platen, (done + n) / ramp)
-        O.run(n, True)
-        done += n
-    load_platen(platen, 1.0)
-    if start > done:
-        O.run(start - done, True)
+    load_platen(platen, 0.0)
+    periodic("graphdem_ramp", lambda: load_platen(platen, min(1.0, O.iter / ramp)), max(1, ramp // 100))
 
 
 def vector3(v):
@@ -262,19 +262,24 @@ def record(job, out):
         return {name: sum((np.array(tuple(O.forces.f(i))) for i in members), np.zeros(3))[:job["dim"]]
                 for name, members in groups.items()}
 
-    def sampled(steps):
-        """Run ``steps`` steps in ``samples`` equal chunks; the group forces averaged over the chunks' ends."""
-        total = {name: np.zeros(job["dim"]) for name in groups}
-        for _ in range(samples):
-            O.run(steps // samples, True)
-            for name, value in group_force().items():
-                total[name] += value
-        return {name: value / samples for name, value in total.items()}
+    taken = []                     # (O.iter, group forces) every every / samples steps
 
+    def window():
+        """The group forces averaged over the samples of the frame interval ending now."""
+        now = [f for it, f in taken if O.iter - every < it <= O.iter]
+        if not now:
+            return group_force()
+        return {name: sum(f[name] for f in now) / len(now) for name in groups}
+
+    if groups and samples > 1:
+        # PyRunner runs inside step O.iter + 1 (O.iter counts the steps done before it)
+        periodic("graphdem_sample", lambda: taken.append((O.iter + 1, group_force())), every // samples)
+    if job.get("platen"):
+        ramp_platen(job)
     runup = time.perf_counter()
-    averaged = samples > 1 and job["start"] >= every
-    run_up(job, job["start"] - every if averaged else job["start"])
-    first = sampled(every) if averaged else group_force()
+    if job["start"]:
+        O.run(job["start"], True)
+    first = window()
     move([m for m in job["motions"] if m.get("from_record")])
     runup = time.perf_counter() - runup
     free = [not f for f in job["fixed"]]
@@ -285,8 +290,10 @@ def record(job, out):
         now = first
         if f:
             start = time.perf_counter()
-            now = sampled(every)
+            O.run(every, True)
             loop += time.perf_counter() - start
+            now = window()
+            taken = [t for t in taken if t[0] > O.iter - every]
         frames.append(positions(ids, job["dim"]))
         steps.append(O.iter)
         times.append(O.time)
