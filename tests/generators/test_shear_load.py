@@ -3,7 +3,9 @@
 A half-size box (48 x 48 x 30 mm) of the default scale's soil spheres (radius 3.5-4.5 mm, about 150 soil
 spheres in five layers: the ci scale's spheres fill the box in two layers, too few for a shear band), one
 packing settled in LAMMPS and sheared in both engines at the softest modulus and the two ends of the
-normal stress range, 6 mm of shear (1/8 of the box) in 12 frames after 20 ms of loading.
+normal stress range, 6 mm of shear (1/8 of the box) in 12 frames after 10 ms of loading (the ci
+scale's); LAMMPS also at the stiffest modulus. Both engines are deterministic per thread count, so the
+figures (printed by test_report, run with -s) repeat.
 """
 
 import numpy as np
@@ -22,18 +24,22 @@ RATIO_AGREEMENT = 0.25              # LAMMPS and YADE peak ratios tau / sigma_n 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """engine -> [the sim at 5 kPa, the sim at 50 kPa], both at E = 1e7 Pa, from one LAMMPS-settled packing."""
+    """engine -> [the sim at 5 kPa, the sim at 50 kPa], both at E = 1e7 Pa, from one LAMMPS-settled packing;
+    "lammps_stiff": the same at E = 1e8 Pa in LAMMPS."""
     cfg = config.load({"scale": "ci", "shear": OVERRIDES})["shear"]
     root = tmp_path_factory.mktemp("shear_load")
     engine.prepare(shear.SCENE, "lammps", shear.SCENE.packings(cfg)[0], root / "packing")
     table = sweep.build("shear", cfg)
     rows = [table.iloc[i].to_dict() for i in (0, 1)]
     assert [r["normal_stress"] for r in rows] == [5.0e3, 5.0e4] and {r["young"] for r in rows} == {1.0e7}
+    stiff = [table.iloc[i].to_dict() for i in (2, 3)]
+    assert {r["young"] for r in stiff} == {1.0e8}
     out = {}
-    for name in ("lammps", "yade"):
+    for name, engine_name, engine_rows in (("lammps", "lammps", rows), ("yade", "yade", rows),
+                                           ("lammps_stiff", "lammps", stiff)):
         out[name] = []
-        for row in rows:
-            row = dict(row, engine=name)
+        for row in engine_rows:
+            row = dict(row, engine=engine_name)
             raw = root / f"{name}_{row['id']}"
             engine.simulate(shear.SCENE, row, root / "packing", raw)
             out[name].append((row, convert.trajectory(raw)))
@@ -100,14 +106,21 @@ def test_lammps_and_yade_agree_on_the_peak_ratio(runs):
         assert abs(ratios[0] - ratios[1]) <= RATIO_AGREEMENT * max(ratios), ratios
 
 
+def test_a_stiffer_soil_mobilises_more_shear_stress(runs):
+    """The modulus changes the response: at 50 kPa the window's mean shear stress (its rise with the
+    displacement) is higher at E = 1e8 Pa than at 1e7 Pa (LAMMPS; one pair of sims, so a 10 % margin only)."""
+    soft, stiff = (runs[name][1][1].observables["shear_stress"][1:].mean() for name in ("lammps", "lammps_stiff"))
+    assert stiff > 1.1 * soft
+
+
 def test_report(runs, capsys):
     """Not a check: the measured figures (run with -s to see them)."""
     with capsys.disabled():
-        for name in ENGINES:
+        for name in (*ENGINES, "lammps_stiff"):
             for row, traj in runs[name]:
                 o = traj.observables
                 peak = shear.peak_shear_stress(o["shear_stress"])
                 print(f"{name} E={row['young']:g} sigma_n={row['normal_stress']:g}: mean normal stress "
                       f"{o['normal_stress'].mean():.1f} Pa, peak tau {peak:.1f} Pa, "
-                      f"ratio {peak / row['normal_stress']:.3f}, "
+                      f"ratio {peak / row['normal_stress']:.3f}, mean tau {o['shear_stress'][1:].mean():.1f} Pa, "
                       f"final normal displacement {o['normal_displacement'][-1] * 1e3:.3f} mm")
