@@ -29,6 +29,15 @@ def test_count_constant_types_soil_box_and_platen(tiny):
     assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
     assert (traj.species == shear.PLATEN).sum() == platen
     assert np.array_equal(traj.kinematic, np.isin(traj.species, (shear.BOX, shear.PLATEN)))
+
+
+def test_the_written_file_holds_the_shear_observables(tiny):
+    """Read back from the H5MD file: one value per frame of each, the normal stress near the set value."""
+    traj = tiny["traj"]
+    for name in shear.OBSERVABLES:
+        assert traj.observables[name].shape == (6,) and np.isfinite(traj.observables[name]).all()
+    assert traj.observables["normal_stress"].mean() == pytest.approx(tiny["row"]["normal_stress"], rel=0.1)
+    assert traj.observables["shear_displacement"][-1] == pytest.approx(tiny["row"]["displacement"], rel=1e-6)
     assert (traj.species == shear.SOIL).sum() > 10
 
 
