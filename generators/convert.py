@@ -37,6 +37,11 @@ def trajectory(raw_dir: Path) -> h5md.Trajectory:
     observables = {}
     if rec.kinetic_energy is not None and len(rec.kinetic_energy) == len(raw["step"]):
         observables["kinetic_energy"] = np.asarray(rec.kinetic_energy, float)
+    for name, values in rec.observables.items():
+        if len(values) != len(raw["step"]):
+            raise h5md.H5MDError(f"{raw_dir}: observable {name!r} has {len(values)} values for {len(raw['step'])} "
+                                 "frames")
+        observables[name] = np.asarray(values, float)
     return h5md.Trajectory(
         position=np.asarray(raw["position"]).astype(np.float32), time=np.asarray(raw["time"]), step=raw["step"],
         species=species, radius=raw["radius"], mass=raw["mass"], kinematic=kinematic,

@@ -26,14 +26,24 @@ COLUMNS = ("scene", "metric", "unit", "engine_a", "engine_b", "n_a", "n_b", "mea
            "rel_diff", "tolerance", "combined_se", "allowed", "pass", "chaos_engine", "chaos_rel_diff", "note")
 
 
+def metric_names(scene: str) -> tuple[str, ...]:
+    """The scene's metrics the cross-check compares: those of positions (``names``) and the DEM-only ones
+    of the sim's observables (``dem_names``, e.g. the shear scene's peak shear stress), where it has them."""
+    metrics = scenes.get(scene).metrics
+    return tuple(metrics.names) + tuple(getattr(metrics, "dem_names", ()))
+
+
 def final_values(scene: str, files: list[Path], body_displacement: float | None = None) -> pd.DataFrame:
-    """One row per sim: each scene metric at the sim's last frame."""
+    """One row per sim: each scene metric at the sim's last frame, and each DEM-only metric of the sim."""
     metrics = scenes.get(scene).metrics
     rows = []
     for path in files:
         traj = h5md.read(path)
         values = metrics.for_trajectory(traj, body_displacement)(traj.position)
-        rows.append({"sim": Path(path).stem, **{name: float(np.asarray(values[name])[-1]) for name in metrics.names}})
+        row = {"sim": Path(path).stem, **{name: float(np.asarray(values[name])[-1]) for name in metrics.names}}
+        if getattr(metrics, "dem_names", ()):
+            row.update(metrics.dem_values(traj))
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -68,7 +78,7 @@ def compare(scene: str, engines: dict[str, list[Path]], tolerance: float, body_d
     base = {a: va, b: vb}.get(chaos_engine)
     units = scenes.get(scene).metrics.units
     rows = []
-    for name in scenes.get(scene).metrics.names:
+    for name in metric_names(scene):
         xa, xb = va[name].to_numpy(float), vb[name].to_numpy(float)
         undefined = (f"undefined at the last frame in {int(np.isnan(xa).sum())} {a} and "
                      f"{int(np.isnan(xb).sum())} {b} sims")

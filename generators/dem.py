@@ -68,10 +68,27 @@ class PlanarWall:
 
 @dataclass(frozen=True)
 class Motion:
-    """Kinematic particles of ``group`` (a name in Particles.groups) moved at constant ``velocity``."""
+    """Kinematic particles of ``group`` (a name in Particles.groups) moved at constant ``velocity``;
+    ``from_record``: held still through the run-up and moving from the first recorded frame on."""
 
     group: str
     velocity: tuple[float, ...]
+    from_record: bool = False
+
+
+@dataclass(frozen=True)
+class Platen:
+    """Kinematic particles of ``group`` moved as one rigid body along ``axis`` only (no rotation, no
+    other translation) by Newton's law: total ``mass`` (kg; gravity acts on it), the contact forces
+    on its particles and an external ``force`` (N along ``axis``, negative: towards -axis), constant
+    after ``ramp`` steps.
+    A load platen: its particles are kinematic in the data (their positions come from the engine)."""
+
+    group: str
+    mass: float
+    force: float
+    axis: int = 2
+    ramp: int = 0                # steps over which the external force rises linearly from 0 (0: at once)
 
 
 @dataclass(frozen=True)
@@ -134,6 +151,10 @@ class Setup:
     tilt: float = 0.0                        # rad: gravity tilted towards +x (an incline of this angle)
     box_lower: np.ndarray | None = None      # the data's box (H5MD); default lower/upper
     box_upper: np.ndarray | None = None
+    platen: Platen | None = None
+    force_groups: tuple[str, ...] = ()       # groups whose summed contact force each frame reports (Frames), the
+    force_samples: int = 1                   # mean over this many equally spaced steps of the frame interval,
+                                             # the last at the frame (a divisor of Record.every)
 
     @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -165,6 +186,8 @@ class Frames:
     radius: np.ndarray           # [N] m, as the engine stored them
     kinetic_energy: np.ndarray | None = None   # [T] J of the moving particles, where the engine reports it
     kinematic_force: np.ndarray | None = None  # [T, D] N: total contact force on the kinematic particles
+    group_force: dict[str, np.ndarray] = field(default_factory=dict)   # group -> [T, D] N, the contact force
+                                                                        # on Setup.force_groups at each frame
 
 
 class UnsupportedSetup(ValueError):

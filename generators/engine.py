@@ -109,7 +109,9 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: i
             box_upper=[float(v) for v in box_upper], contact_model=runner.CONTACT_MODEL + _walls(setup),
             parameters=scene.h5md_parameters(row, setup), properties=scene.properties(row),
             log_scaled_properties=list(scene.log_scaled_properties),
-            kinetic_energy=None if frames.kinetic_energy is None else [float(e) for e in frames.kinetic_energy])
+            kinetic_energy=None if frames.kinetic_energy is None else [float(e) for e in frames.kinetic_energy],
+            observables={k: [float(v) for v in np.asarray(values, float)]
+                         for k, values in scene.observables(row, setup, frames).items()})
         record.write(tmp / record.RUN_FILE, rec)
     return rec
 

@@ -75,6 +75,7 @@ class SimRecord:
     properties: dict                     # per-particle properties f_i (name -> value of every particle)
     log_scaled_properties: list[str]
     kinetic_energy: list[float] | None = None
+    observables: dict[str, list[float]] = field(default_factory=dict)   # Scene.observables, per frame
     kind: str = "sim"
 
     @property

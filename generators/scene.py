@@ -13,7 +13,8 @@ What a scene provides:
   :meth:`settle_setup` reads, derived by :meth:`packing_params`);
 - engine-neutral descriptions (generators/dem.py): :meth:`settle_setup` (prepare),
   :meth:`simulate_setup` (simulate), and :meth:`settled` (what the scene keeps of a settled pour);
-- data: :meth:`h5md_parameters` and :meth:`properties` (per-particle properties f_i) of a sim;
+- data: :meth:`h5md_parameters`, :meth:`properties` (per-particle properties f_i) and
+  :meth:`observables` (per-frame values, e.g. forces) of a sim;
 - checks: :meth:`check` (config semantics, raising ConfigError with the key's name);
 - metrics: ``metrics``, a class with ``for_trajectory(traj, body_displacement)``, ``names``,
   ``pair_names``, ``units``, ``__call__(position)`` and ``compare(predicted, truth)``.
@@ -158,6 +159,11 @@ class Scene(ABC):
 
     def properties(self, row: dict) -> dict[str, float]:
         """Per-particle properties f_i of a sim (name -> value of every particle); default: none."""
+        return {}
+
+    def observables(self, row: dict, setup: dem.Setup, frames: dem.Frames) -> dict[str, np.ndarray]:
+        """Per-frame observables of a sim (name -> [T]) for the H5MD file's /observables, from the engine's
+        frames; default: none (kinetic energy is stored for every scene by convert)."""
         return {}
 
     #: properties the dataset normalises in log space

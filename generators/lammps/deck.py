@@ -112,19 +112,63 @@ def setup_lines(setup: dem.Setup) -> list[str]:
         lines.append(f"fix             wall{k} all wall/gran granular {model} {AXES[wall.axis]}plane {bounds}")
     for k, motion in enumerate(setup.motions):
         lines += motion_lines(setup, k, motion)
+        if not motion.from_record:
+            lines.append(move_line(k, motion))
+    for k, name in enumerate(setup.force_groups):
+        if setup.platen is None or name != setup.platen.group:
+            lines += group_lines(setup, name, f"force{k}")
+    if setup.platen is not None:
+        lines += platen_lines(setup)
     return lines
 
 
+def group_lines(setup: dem.Setup, group: str, name: str) -> list[str]:
+    """A LAMMPS group ``name`` of the Setup's group ``group``, by atom id (200 per line)."""
+    ids = np.flatnonzero(setup.group(group)) + 1
+    return [f"group           {name} id {' '.join(str(i) for i in ids[j:j + 200])}" for j in range(0, len(ids), 200)]
+
+
 def motion_lines(setup: dem.Setup, k: int, motion: dem.Motion) -> list[str]:
-    """A Motion: its group's atoms (by id, 200 per line) moved at constant velocity by `fix move`."""
-    ids = np.flatnonzero(setup.group(motion.group)) + 1
-    if not np.all(setup.kinematic[ids - 1]):
+    """A Motion's group ``motion<k>`` (its atoms by id); :func:`move_line` moves it."""
+    if not np.all(setup.kinematic[setup.group(motion.group)]):
         raise dem.UnsupportedSetup(f"{setup.name}: motion of group {motion.group!r} moves particles that are not "
                                    "of a kinematic species")
-    name = f"motion{k}"
-    lines = [f"group           {name} id {' '.join(str(i) for i in ids[j:j + 200])}" for j in range(0, len(ids), 200)]
+    return group_lines(setup, motion.group, f"motion{k}")
+
+
+def move_line(k: int, motion: dem.Motion) -> str:
+    """A Motion's group moved at constant velocity by `fix move` from the step it is defined on."""
     v = list(motion.velocity) + [0.0] * (3 - len(motion.velocity))
-    return lines + [f"fix             {name} {name} move linear {' '.join(fmt(float(x)) for x in v)}"]
+    return f"fix             motion{k} motion{k} move linear {' '.join(fmt(float(x)) for x in v)}"
+
+
+def platen_lines(setup: dem.Setup) -> list[str]:
+    """A Platen as group ``platen``: each of its N atoms has mass M / N and the same force along the axis,
+    the average of their contact forces plus F / N (`fix aveforce`; F ramped over Platen.ramp steps) plus
+    their weight (fix gravity, after it), and none across
+    it (`fix setforce`); `fix nve` moves them without rotation, so the group translates rigidly along the
+    axis. fix aveforce's vector, summed before it changes the forces, is the platen's contact force."""
+    platen = setup.platen
+    if setup.dim != 3:
+        raise dem.UnsupportedSetup(f"{setup.name}: the LAMMPS driver runs a platen in 3D scenes only")
+    mask = setup.group(platen.group)
+    if not np.all(setup.kinematic[mask]):
+        raise dem.UnsupportedSetup(f"{setup.name}: platen group {platen.group!r} holds particles that are not of a "
+                                   "kinematic species")
+    n = int(mask.sum())
+    s, c = math.sin(setup.tilt), math.cos(setup.tilt)
+    along = ["NULL" if a == platen.axis else "0.0" for a in range(3)]
+    load = ["NULL"] * 3
+    load[platen.axis] = "v_platen_load"
+    r = int(platen.ramp)
+    ramp = f"*(step/{r}*(step<{r})+(step>={r}))" if r > 0 else ""
+    return [*group_lines(setup, platen.group, "platen"),
+            f"set             group platen mass {fmt(float(platen.mass) / n)}",
+            f'variable        platen_load equal "{fmt(float(platen.force) / n)}{ramp}"',
+            "fix             platen_integrate platen nve",
+            f"fix             platen_load platen aveforce {' '.join(load)}",
+            f"fix             platen_gravity platen gravity {fmt(float(setup.gravity))} vector {fmt(s)} 0 {fmt(-c)}",
+            f"fix             platen_across platen setforce {' '.join(along)}"]
 
 
 def settle_deck(setup: dem.Setup) -> str:
@@ -158,8 +202,37 @@ def force_lines(setup: dem.Setup) -> list[str]:
     if not setup.kinematic.any():
         return ["thermo_style    custom step time c_ke c_erot"]
     axes = AXES[: setup.dim]
-    return [f"compute         force kinematic reduce sum {' '.join('f' + a for a in axes)}",
-            "thermo_style    custom step time c_ke c_erot " + " ".join(f"c_force[{k + 1}]" for k in range(setup.dim))]
+    lines = [f"compute         force kinematic reduce sum {' '.join('f' + a for a in axes)}"]
+    columns = [f"c_force[{k + 1}]" for k in range(setup.dim)]
+    inputs = []
+    for name in setup.force_groups:
+        inputs += _group_force_inputs(setup, name)
+        if setup.platen is None or name != setup.platen.group:
+            k = setup.force_groups.index(name)
+            lines.append(f"compute         force{k} force{k} reduce sum {' '.join('f' + a for a in axes)}")
+    if inputs:
+        every, samples = setup.schedule.every, setup.force_samples
+        if every % samples or (samples > 1 and setup.schedule.start < every):
+            raise dem.UnsupportedSetup(f"{setup.name}: {samples} force samples in a frame interval of {every} steps "
+                                       f"(not a divisor), or before a run-up of {setup.schedule.start} steps")
+        lines.append(f"fix             groupforce all ave/time {every // samples} {samples} {every} {' '.join(inputs)}")
+        columns += [f"f_groupforce[{k + 1}]" for k in range(len(inputs))]
+    return lines + ["thermo_style    custom step time c_ke c_erot " + " ".join(columns)]
+
+
+def _group_force_inputs(setup: dem.Setup, name: str) -> list[str]:
+    """The per-step values of force group ``name``'s contact force: a platen's from its fix aveforce (the sum
+    before the fix changes it), any other group's from a reduce compute."""
+    if setup.platen is not None and name == setup.platen.group:
+        return [f"f_platen_load[{a + 1}]" for a in range(setup.dim)]
+    return [f"c_force{setup.force_groups.index(name)}[{a + 1}]" for a in range(setup.dim)]
+
+
+def group_force_columns(setup: dem.Setup, name: str) -> list[str]:
+    """The thermo columns of force group ``name``'s contact force, each the mean over Setup.force_samples
+    equally spaced steps of the frame interval ending at the frame (`fix ave/time`)."""
+    k = setup.force_groups.index(name)
+    return [f"f_groupforce[{k * setup.dim + a + 1}]" for a in range(setup.dim)]
 
 
 def record_deck(setup: dem.Setup) -> str:
@@ -179,11 +252,12 @@ def record_deck(setup: dem.Setup) -> str:
         f"write_dump      all custom {STATIC} id type radius mass modify sort id format float %.10g"]
     if r.start:
         lines.append(f"run             {r.start}")
+    lines += [move_line(k, m) for k, m in enumerate(setup.motions) if m.from_record]
     recorded = "moving"
-    if setup.motions:        # moving kinematic particles are recorded too
+    if setup.motions or setup.platen is not None:        # moving kinematic particles are recorded too
         recorded = "recorded"
-        motions = " ".join(f"motion{k}" for k in range(len(setup.motions)))
-        lines.append(f"group           recorded union moving {motions}")
+        moved = [f"motion{k}" for k in range(len(setup.motions))] + (["platen"] if setup.platen is not None else [])
+        lines.append(f"group           recorded union moving {' '.join(moved)}")
     lines += [f"dump            frames {recorded} custom {r.every} {FRAMES} id {coords}",
               "dump_modify     frames sort id format float %.10g", f"run             {r.every * (r.frames - 1)}"]
     return "\n".join(lines) + "\n"

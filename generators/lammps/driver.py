@@ -85,8 +85,14 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     kinetic = (thermo["c_ke"] + thermo["c_erot"]).loc[raw["step"]].to_numpy()
     columns = [f"c_force[{k + 1}]" for k in range(setup.dim)]
     force = thermo[columns].loc[raw["step"]].to_numpy() if all(c in thermo for c in columns) else None
+    group_force = {}
+    for name in setup.force_groups:
+        columns = deck.group_force_columns(setup, name)
+        if not all(c in thermo for c in columns):
+            raise io.LammpsOutputError(f"{setup.name}: no thermo columns {columns} of force group {name!r}")
+        group_force[name] = thermo[columns].loc[raw["step"]].to_numpy(float)
     frames = dem.Frames(position=raw["position"], step=raw["step"], time=raw["time"], mass=raw["mass"],
-                        radius=raw["radius"], kinetic_energy=kinetic, kinematic_force=force)
+                        radius=raw["radius"], kinetic_energy=kinetic, kinematic_force=force, group_force=group_force)
     return frames, _engine_run(run, workdir / "log.lammps")
 
 

@@ -1,11 +1,25 @@
 """The 3D direct-shear scene (article 5.1 "Direct Shear"): definition, DEM description and metrics
 (Table 4, Fig. 14).
 
-A shear box (inner size ``box`` = L x W x H) split at mid-height ``z_s = H / 2``; its bottom and
-side walls are spheres ("box" particles, kinematic): the lower half, bottom plate included, moves
-along +x at constant speed, the upper half is held. Soil spheres fill it. The soil's Young's
-modulus is swept; it is the per-particle property ``young`` of the data (box particles are of the
-soil's material, so they carry the same value). Species ids: 0 box (kinematic), 1 soil.
+A direct shear test under constant normal load. A shear box (inner size ``box`` = L x W x H) split at
+mid-height ``z_s = H / 2``; its bottom and side walls are spheres ("box" particles, kinematic): the
+lower half, bottom plate included, moves along +x at constant speed, the upper half is held. Soil
+spheres fill it. On the soil rests a top platen: one layer of wall spheres ("platen", kinematic in the
+data: its positions come from the engine) moving as one rigid body along z only, of mass
+``platen_mass``, loaded so that it presses on the soil with ``normal_stress`` x L x W (its weight
+included). The soil's Young's modulus and the normal stress are swept; they are the per-particle
+properties ``young`` and ``normal_stress`` of the data (every particle carries the sim's values).
+Species ids: 0 box (kinematic), 1 soil, 2 platen (kinematic).
+
+A sim runs in two phases: loading (``load_time`` s: the platen's external force ramps up linearly over
+its first half, the box is still), then shearing, which is the recorded window (frame 0 is its start).
+Per frame the H5MD file holds the observables ``shear_force`` (N, the x contact force the soil exerts
+on the held upper frame and on the platen, which is held in x with it, as a loading cap is in a shear
+box: the shear resistance, positive along the shear), ``shear_stress`` (its value
+over L W), ``shear_displacement`` (m, of the lower half), ``normal_stress`` (Pa, the z contact force
+of the soil on the platen over L W) and ``normal_displacement`` (m, the platen's z change since frame
+0; positive: dilation). A frame's forces are the mean over FORCE_SAMPLES equally spaced steps of the
+frame interval ending at the frame (frame 0: the last interval of the loading), in both engines.
 
 Geometry: the box's inner faces are the planes x = 0, x = L, y = 0, y = W and z = 0; wall sphere
 centres lie one wall radius outside them on a square grid of spacing ``wall_spacing`` radii.
@@ -22,8 +36,13 @@ from generators import contact, dem
 from generators.config import ConfigError
 from generators.scene import Scene, lattice_count, lattice_spacing, trajectory_parameters
 
-BOX, SOIL = 0, 1
+BOX, SOIL, PLATEN = 0, 1, 2
 LOWER = "lower"            # the packing's group of box spheres in the moving lower half
+UPPER = "upper"            # the held upper half's box spheres (simulate only)
+PLATEN_GROUP = "platen"    # the platen's spheres (simulate only)
+PLATEN_CLEARANCE = 0.5     # wall radii between the platen's outer spheres and the box's inner faces
+FORCE_SAMPLES = 10        # the forces of a frame: the mean of 10 equally spaced steps of its interval
+OBSERVABLES = ("shear_force", "shear_stress", "shear_displacement", "normal_stress", "normal_displacement")
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
 SETTLE_CHECK = 0.005       # s of physical time between two checks of the settling energy
 
@@ -36,6 +55,15 @@ def young_values(cfg: dict) -> list[float]:
     """The swept moduli: ``sweep.n_young`` values spaced evenly in log between ``sweep.young``."""
     lo, hi = cfg["sweep"]["young"]
     n = int(cfg["sweep"]["n_young"])
+    values = np.geomspace(lo, hi, n) if n > 1 else np.array([math.sqrt(lo * hi)])
+    return [float(f"{v:.6g}") for v in values]
+
+
+def normal_stress_values(cfg: dict) -> list[float]:
+    """The swept normal stresses: ``sweep.n_normal_stress`` values spaced evenly in log between
+    ``sweep.normal_stress``."""
+    lo, hi = cfg["sweep"]["normal_stress"]
+    n = int(cfg["sweep"]["n_normal_stress"])
     values = np.geomspace(lo, hi, n) if n > 1 else np.array([math.sqrt(lo * hi)])
     return [float(f"{v:.6g}") for v in values]
 
@@ -100,6 +128,75 @@ def trim(settled: dem.Particles, cfg: dict) -> dem.Particles:
     return settled.subset(keep)
 
 
+def platen_grid(cfg: dict) -> np.ndarray:
+    """[M, 2] x, y of the platen's sphere centres: a square grid of spacing ``wall_spacing`` wall radii
+    whose outer spheres keep PLATEN_CLEARANCE wall radii from the box's inner faces (it never touches the
+    side walls)."""
+    length, width, _ = cfg["box"]
+    rw = cfg["wall_radius"]
+    edge = (1.0 + PLATEN_CLEARANCE) * rw
+    step = cfg["wall_spacing"] * rw
+    xs, ys = _grid(edge, length - edge, step), _grid(edge, width - edge, step)
+    return np.stack(np.meshgrid(xs, ys, indexing="ij"), -1).reshape(-1, 2)
+
+
+def platen_particles(cfg: dict, soil: dem.Particles) -> dem.Particles:
+    """The platen resting on the settled soil: its grid (:func:`platen_grid`) at the lowest height where
+    no platen sphere overlaps a soil sphere (it touches the highest point of the surface)."""
+    rw = cfg["wall_radius"]
+    xy = platen_grid(cfg)
+    reach = soil.radius[None, :] + rw
+    d2 = ((xy[:, None, :] - soil.x[None, :, :2]) ** 2).sum(-1)
+    lift = np.where(d2 < reach**2, soil.x[None, :, 2] + np.sqrt(np.maximum(reach**2 - d2, 0.0)), -np.inf)
+    z = max(float(lift.max()), float((soil.x[:, 2] + soil.radius).max()) - rw) if len(soil.x) else rw
+    xyz = np.column_stack([xy, np.full(len(xy), z)])
+    return dem.Particles(xyz, np.full(len(xy), rw), np.full(len(xy), PLATEN))
+
+
+def platen_force(row: dict) -> float:
+    """The platen's external force along z (N): the normal load less the platen's weight, downwards, so that
+    weight plus force press on the soil with exactly normal_stress x L x W."""
+    length, width, _ = row["box"]
+    return -(row["normal_stress"] * length * width - row["platen_mass"] * row["gravity"])
+
+
+def loaded(packing: dem.Particles, row: dict) -> dem.Particles:
+    """The settled packing with the platen on it and the groups of a sim: the lower half (moved), the upper
+    half (its force is the shear force) and the platen."""
+    soil = packing.subset(packing.species == SOIL)
+    platen = platen_particles(row, soil)
+    full = packing.concat(platen)
+    box = full.species == BOX
+    groups = {LOWER: full.groups[LOWER] & box, UPPER: box & ~full.groups[LOWER], PLATEN_GROUP: full.species == PLATEN}
+    return dem.Particles(full.x, full.radius, full.species, groups)
+
+
+def observables(row: dict, position: np.ndarray, group_force: dict[str, np.ndarray],
+                groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The per-frame observables of a sim (module docstring) from its positions [T, N, 3], the contact
+    force [T, 3] on the upper half and on the platen, and the particle groups. The shear force is the x
+    contact force on the upper half plus that on the platen (both held in x)."""
+    length, width, _ = row["box"]
+    area = length * width
+    position = np.asarray(position, np.float64)
+    shear_force = np.asarray(group_force[UPPER], float)[:, 0] + np.asarray(group_force[PLATEN_GROUP], float)[:, 0]
+    lower_x = position[:, groups[LOWER], 0].mean(axis=1)
+    platen_z = position[:, groups[PLATEN_GROUP], 2].mean(axis=1)
+    return {"shear_force": shear_force, "shear_stress": shear_force / area,
+            "shear_displacement": lower_x - lower_x[0],
+            "normal_stress": np.asarray(group_force[PLATEN_GROUP], float)[:, 2] / area,
+            "normal_displacement": platen_z - platen_z[0]}
+
+
+def peak_shear_stress(shear_stress, smooth: int = 1) -> float:
+    """The DEM's peak shear stress (Pa) of a sim: the largest value of its per-frame ``shear_stress``
+    observable, after a centred running mean over ``smooth`` frames (1: none); NaN if none is finite."""
+    tau = np.asarray(shear_stress, float)
+    if smooth > 1 and len(tau) >= smooth:
+        tau = np.convolve(tau, np.ones(smooth) / smooth, mode="valid")
+    return float(np.nanmax(tau)) if np.isfinite(tau).any() else float("nan")
+
+
 def domain(cfg: dict, displacement: float) -> tuple[np.ndarray, np.ndarray]:
     """Bounds every particle must stay within: the box walls, shifted by the shear, plus a margin
     of two wall diameters, and up to two box heights."""
@@ -124,7 +221,19 @@ class ShearMetrics:
     names = ("Mean x",)
     sets = ("Above", "Below", "Failure Surface", "All")
     pair_names = tuple(f"{s} {k}" for s in sets for k in ("sum", "mean"))
-    units = {"Mean x": "m", **{name: "m" for name in pair_names}}
+    # DEM-only: from the sim's observables, not from positions, so the surrogate does not predict them (yet)
+    dem_names = ("Peak shear stress", "Peak stress ratio")
+    units = {"Mean x": "m", **{name: "m" for name in pair_names}, "Peak shear stress": "Pa", "Peak stress ratio": ""}
+
+    @classmethod
+    def dem_values(cls, traj) -> dict[str, float]:
+        """The DEM's peak shear stress (:func:`peak_shear_stress`) of a sim and its ratio to the set normal
+        stress; NaN where the file has no shear_stress observable (written before the load platen)."""
+        if "shear_stress" not in traj.observables:
+            return {name: float("nan") for name in cls.dem_names}
+        peak = peak_shear_stress(traj.observables["shear_stress"])
+        stress = float(traj.parameters.get("normal_stress", float("nan")))
+        return {"Peak shear stress": peak, "Peak stress ratio": peak / stress}
 
     @classmethod
     def for_trajectory(cls, traj, body_displacement: float | None = None) -> ShearMetrics:
@@ -164,11 +273,11 @@ def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
 class Shear(Scene):
     name = "shear"
     dim = 3
-    species = {BOX: "box", SOIL: "soil"}
-    kinematic_species = (BOX,)
+    species = {BOX: "box", SOIL: "soil", PLATEN: "platen"}
+    kinematic_species = (BOX, PLATEN)
     engines = ("yade", "lammps")
     metrics = ShearMetrics
-    log_scaled_properties = ("young",)
+    log_scaled_properties = ("young", "normal_stress")
 
     def packings(self, cfg: dict) -> list[dict]:
         """The one packing every sim shares: settled with the stiffest swept modulus.
@@ -179,16 +288,18 @@ class Shear(Scene):
         """
         return [self.packing_params(cfg, young=float(max(young_values(cfg))))]
 
-    def _axes(self, cfg: dict) -> list[tuple[float, float]]:
-        return [(e, float(d)) for e in young_values(cfg) for d in cfg["sweep"]["displacements"]]
+    def _axes(self, cfg: dict) -> list[tuple[float, float, float]]:
+        return [(e, s, float(d)) for e in young_values(cfg) for s in normal_stress_values(cfg)
+                for d in cfg["sweep"]["displacements"]]
 
     def sweep_size(self, cfg: dict) -> int:
-        return len(young_values(cfg)) * len(cfg["sweep"]["displacements"])
+        return len(young_values(cfg)) * len(normal_stress_values(cfg)) * len(cfg["sweep"]["displacements"])
 
     def draw(self, cfg: dict, index: int, rng: np.random.Generator, packings: list[str]) -> dict:
-        """The soil modulus x shear displacement grid, modulus varying slowest; one shared packing."""
-        young, displacement = self._axes(cfg)[index]
-        return {"young": young, "displacement": displacement, "packing": packings[0]}
+        """The soil modulus x normal stress x shear displacement grid, modulus varying slowest; one shared
+        packing."""
+        young, stress, displacement = self._axes(cfg)[index]
+        return {"young": young, "normal_stress": stress, "displacement": displacement, "packing": packings[0]}
 
     def finish_sweep(self, rows: list[dict], cfg: dict) -> None:
         """``domain_displacement``, the largest displacement, fixes the same data bounds for every sim."""
@@ -207,39 +318,61 @@ class Shear(Scene):
         return trim(particles, params)
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
-        """The lower box moves along +x at a speed that gives exactly ``displacement`` at the last frame."""
-        def record(dt: float) -> dem.Record:
-            interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
-            return dem.Record(start=0, every=max(1, int(round(interval / dt))), frames=row["frames"])
-
+        """The platen placed on the soil (:func:`loaded`) loads it for ``load_time`` (its external force
+        ramping up over the first half), the box still; then the lower box moves along +x at a speed that
+        gives exactly ``displacement`` at the last frame, frame 0 at the start of the shear."""
         step = dem_step(row, where=row["id"])
         dt = step[0]
-        every = record(dt).every
+        interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
+        every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
+        start = every * int(math.ceil(row["load_time"] / (every * dt)))     # LAMMPS dumps on multiples of every
         speed = row["displacement"] / (every * dt * (row["frames"] - 1))
         box_lower, box_upper = domain(row, row["domain_displacement"])
-        return self.setup(row, row["id"], packing, step, domain(row, row["displacement"]), record,
-                      motions=(dem.Motion(LOWER, (speed, 0.0, 0.0)),), box_lower=box_lower, box_upper=box_upper)
+        platen = dem.Platen(PLATEN_GROUP, float(row["platen_mass"]), platen_force(row), axis=2,
+                            ramp=max(1, start // 2))
+        return self.setup(row, row["id"], loaded(packing, row), step, domain(row, row["displacement"]),
+                          lambda dt: dem.Record(start=start, every=every, frames=row["frames"]),
+                          motions=(dem.Motion(LOWER, (speed, 0.0, 0.0), from_record=True),), platen=platen,
+                          force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
+                          box_upper=box_upper)
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
-        return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0]}
+        return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0],
+                "platen_force": setup.platen.force, "load_steps": setup.schedule.start,
+                "shear_area": float(row["box"][0] * row["box"][1])}
+
+    def observables(self, row: dict, setup: dem.Setup, frames: dem.Frames) -> dict[str, np.ndarray]:
+        return observables(row, frames.position, frames.group_force, setup.particles.groups)
 
     def properties(self, row: dict) -> dict[str, float]:
-        return {"young": row["young"]}
+        return {"young": row["young"], "normal_stress": row["normal_stress"]}
 
     def particle_estimate(self, cfg: dict) -> int:
-        """Lattice sites of the loose pour (FILL_FACTOR box heights) plus the box's wall spheres."""
+        """Lattice sites of the loose pour (FILL_FACTOR box heights) plus the box's and the platen's wall
+        spheres."""
         length, width, height = cfg["box"]
         step = cfg["wall_spacing"] * cfg["wall_radius"]
-        walls = (length * width + 2 * (length + width) * FILL_FACTOR * height) / step ** 2
+        walls = (2 * length * width + 2 * (length + width) * FILL_FACTOR * height) / step ** 2
         return int(lattice_count(length * width * FILL_FACTOR * height, cfg["radius"][1], 3) + walls)
 
     def check(self, cfg: dict) -> None:
         from generators.scene import check_range
         check_range(self.name, "sweep.young", cfg["sweep"]["young"])
+        check_range(self.name, "sweep.normal_stress", cfg["sweep"]["normal_stress"])
+        length, width, _ = cfg["box"]
+        weight = cfg["platen_mass"] * cfg["gravity"]
+        if weight >= min(cfg["sweep"]["normal_stress"]) * length * width:
+            raise ConfigError(f"config key 'shear.platen_mass' = {cfg['platen_mass']} kg weighs {weight:.4g} N, more "
+                              f"than the smallest normal load ({min(cfg['sweep']['normal_stress'])} Pa x L x W = "
+                              f"{min(cfg['sweep']['normal_stress']) * length * width:.4g} N): lighten the platen")
         if cfg["wall_radius"] * (cfg["wall_spacing"] / 2**0.5 - 1.0) >= cfg["radius"][0]:
             raise ConfigError(f"config keys 'shear.wall_radius' = {cfg['wall_radius']} and 'shear.wall_spacing' = "
                               f"{cfg['wall_spacing']} leave holes in the box walls wider than the smallest soil "
                               f"sphere ({cfg['radius'][0]} m): lower the spacing or raise the wall radius")
+        if PLATEN_CLEARANCE * cfg["wall_radius"] >= cfg["radius"][0]:
+            raise ConfigError(f"config key 'shear.wall_radius' = {cfg['wall_radius']} leaves a gap of "
+                              f"{PLATEN_CLEARANCE} wall radii between platen and box walls wider than the smallest "
+                              f"soil sphere ({cfg['radius'][0]} m)")
 
 
 SCENE = Shear()

@@ -6,7 +6,10 @@ listening socket, which fails the run.
 
 Supported: 3D spheres; 2D discs as spheres of the disc's radius held in the plane (blocked z translation
 and x, y rotations) with a disc's mass rho pi r^2 and inertia m r^2 / 2 (unit thickness, the LAMMPS 2D
-convention); kinematic species (fixed, or moved at constant velocity by a Motion); planar walls
+convention); kinematic species (fixed, or moved at constant velocity by a Motion, from step 0 or from the
+first recorded frame; two kinematic spheres never interact); a load Platen (one clump, free along its
+axis only, pushed by a permanent force; contact forces of force groups averaged over force_samples steps
+of each frame interval); planar walls
 (``utils.wall``); initial velocities; per-species overrides that lower the friction (and keep or zero
 the rolling friction); settling with
 Cundall's local damping or a viscous drag.
@@ -116,14 +119,29 @@ def settle(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     return dem.Particles(arrays["position"], p.radius, p.species, p.groups), _engine_run(run, setup, None)
 
 
+def _force_samples(setup: dem.Setup) -> int:
+    if setup.schedule.every % setup.force_samples:
+        raise _unsupported(setup, f"{setup.force_samples} force samples in a frame interval of {setup.schedule.every} "
+                                  "steps (not a divisor)")
+    return int(setup.force_samples)
+
+
 def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
     """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps (one
     process: ``ranks`` must be 1; ``threads`` OpenMP threads, YADE's ``-j``)."""
     _one_process(setup, ranks)
     r = setup.schedule
-    motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity)} for m in setup.motions]
+    motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity), "from_record": m.from_record}
+               for m in setup.motions]
     job = {"mode": "record", **_job(setup), "motions": motions, "start": r.start, "every": r.every,
-           "frames": r.frames}
+           "frames": r.frames, "force_groups": {name: setup.group(name).tolist() for name in setup.force_groups},
+           "force_samples": _force_samples(setup)}
+    if setup.platen is not None:
+        pl = setup.platen
+        if setup.dim != 3 or not np.all(setup.kinematic[setup.group(pl.group)]):
+            raise _unsupported(setup, "a platen outside 3D or of particles not of a kinematic species")
+        job["platen"] = {"mask": setup.group(pl.group).tolist(), "mass": pl.mass, "force": pl.force, "axis": pl.axis,
+                         "ramp": pl.ramp}
     workdir = Path(workdir)
     try:
         arrays, run = runner.run(job, workdir, "record", threads=threads)
@@ -135,7 +153,8 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     (workdir / "record.npz").unlink()
     frames = dem.Frames(position=arrays["position"], step=arrays["step"], time=arrays["time"], mass=arrays["mass"],
                         radius=p.radius, kinetic_energy=arrays["kinetic_energy"],
-                        kinematic_force=arrays["kinematic_force"])
+                        kinematic_force=arrays["kinematic_force"],
+                        group_force={name: arrays[f"group_force:{name}"] for name in setup.force_groups})
     return frames, _engine_run(run, setup, float(arrays["loop_seconds"]), float(arrays["runup_seconds"]))
 
 

@@ -352,17 +352,17 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert (res / "benchmarks" / "evaluate.tsv").is_file()
 
 
-@pytest.mark.parametrize("scene, dim, metrics", [
-    ("meteorite", 2, {"Imp Dep", "Cra Dep", "Imp R(L)", "Imp R(R)", "Sp Num(L)", "Sp Num(R)", "Max Ht(L)",
+@pytest.mark.parametrize("scene, dim, n_types, metrics", [
+    ("meteorite", 2, 2, {"Imp Dep", "Cra Dep", "Imp R(L)", "Imp R(R)", "Sp Num(L)", "Sp Num(R)", "Max Ht(L)",
                       "Max Ht(R)", "Mean Ht(L)", "Mean Ht(R)"}),
-    ("shear", 3, {"Mean x", "Above sum", "Above mean", "Below sum", "Below mean", "Failure Surface sum",
+    ("shear", 3, 3, {"Mean x", "Above sum", "Above mean", "Below sum", "Below mean", "Failure Surface sum",
                   "Failure Surface mean", "All sum", "All mean"}),
 ])
-def test_scene_outputs(ci_results, scene, dim, metrics):
+def test_scene_outputs(ci_results, scene, dim, n_types, metrics):
     import pandas as pd
     res = ci_results / scene
     stats = json.loads((res / "dataset" / "stats.json").read_text())
-    assert stats["dim"] == dim and stats["n_types"] == 2
+    assert stats["dim"] == dim and stats["n_types"] == n_types       # shear: box, soil and the load platen
     table = pd.read_csv(res / "metrics.csv", dtype={"acc_frames": str})      # a one-tau list reads as text
     assert metrics | {"rollout MSE"} <= set(table["metric"])
     mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index("method")["mse"]
@@ -398,7 +398,8 @@ def test_scene_outputs(ci_results, scene, dim, metrics):
 
 def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):
     stats = json.loads((ci_results / "shear" / "dataset" / "stats.json").read_text())
-    assert stats["property_names"] == ["young"] and stats["kinematic_species"] == [0]
+    assert stats["property_names"] == ["young", "normal_stress"] and stats["kinematic_species"] == [0, 2]
     assert stats["property_stats"]["young"]["log"] is True
+    assert stats["property_stats"]["normal_stress"]["log"] is True
     meteorite = json.loads((ci_results / "meteorite" / "dataset" / "stats.json").read_text())
     assert meteorite["property_names"] == [] and meteorite["kinematic_species"] == []

@@ -6,9 +6,13 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
   (``NewtonIntegrator.damping``) or a viscous drag (``LinearDragEngine``) until the kinetic energy per
   moving sphere is below the tolerance or the time limit is reached; writes the final positions.
 - ``record``: each motion's spheres move at their constant velocity (fixed spheres not in a motion are
-  held), spheres with an initial ``velocity`` start with it; after ``start`` steps the positions of
-  every sphere are recorded every ``every`` steps, with the moving spheres' kinetic energy and the total
-  contact force on the fixed ones.
+  held; a motion ``from_record`` starts at the first recorded frame), spheres with an initial
+  ``velocity`` start with it; a ``platen`` (its spheres one clump of the given mass, free along one
+  axis only, pushed by a permanent force that ramps up in a staircase of 100 steps over ``ramp``
+  DEM steps) is loaded; after ``start`` steps the positions of every sphere are recorded every
+  ``every`` steps, with the moving spheres' kinetic energy, the total contact force on the fixed ones
+  and the contact force on each of the ``force_groups`` (averaged over ``force_samples`` equally spaced
+  steps of the frame interval, the last at the frame; frame 0's over the run-up's last interval).
 
 graphdem starts YADE's launcher without its TCP Python prompt and XML-RPC server (generators/yade/runner.py).
 As a second guard the script shuts down any socket server it finds at its start (counted in its output: 0)
@@ -37,6 +41,7 @@ from yade.wrapper import (
     Law2_ScGeom_ViscElPhys_Basic,
     LinearDragEngine,
     NewtonIntegrator,
+    PyRunner,
     ViscElMat,
 )
 
@@ -93,6 +98,11 @@ def gravity_vector(job):
     return (g * math.sin(tilt), 0.0, -g * math.cos(tilt))
 
 
+# Collision masks: two kinematic spheres never interact (the collider's avoidSelfInteractionMask drops pairs
+# of the same mask that has its bit), as LAMMPS excludes kinematic type pairs; moving spheres meet everything.
+MOVING_MASK, KINEMATIC_MASK, SELF_AVOID = 0b001, 0b011, 0b010
+
+
 def build(job):
     """Bodies, walls and engines of the job. Each sphere has its own material with young = kn / r, so
     that two spheres meet with the job's constant kn whatever their radii; 2D discs are spheres held in
@@ -100,11 +110,15 @@ def build(job):
     thickness."""
     kn, dim = job["kn"], job["dim"]
     overrides = {int(k): v for k, v in job.get("species_contacts", {}).items()}
+    platen = job.get("platen")
+    in_platen = platen["mask"] if platen else [False] * len(job["radius"])
     ids = []
-    for pos, r, fixed, species in zip(job["position"], job["radius"], job["fixed"], job["species"], strict=True):
+    for pos, r, fixed, species, clumped in zip(job["position"], job["radius"], job["fixed"], job["species"], in_platen,
+                                               strict=True):
         friction, rolling = overrides.get(int(species), (job["friction"], job["rolling_friction"]))
         mat = material(job, kn / r, friction, 0.5 * rolling * r)
-        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed))
+        body = utils.sphere(vector3(pos), r, material=mat, fixed=bool(fixed) and not clumped,
+                            mask=KINEMATIC_MASK if fixed else MOVING_MASK)
         if dim == 2:
             mass = job["density"] * math.pi * r * r
             body.state.mass = mass
@@ -119,10 +133,12 @@ def build(job):
         centre = [0.0, 0.0, 0.0]
         centre[axis] = value
         O.bodies.append(utils.wall(tuple(centre), axis=axis, sense=sense, material=wall_mat))
+    if platen:
+        platen["clump"] = make_platen(platen, ids)
     free = [i for i, f in zip(ids, job["fixed"], strict=True) if not f]
     engines = [
         ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),
+        InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()], avoidSelfInteractionMask=SELF_AVOID),
         InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()], [Ip2_ViscElMat_ViscElMat_ViscElPhys()],
                         [Law2_ScGeom_ViscElPhys_Basic()]),
     ]
@@ -132,6 +148,46 @@ def build(job):
     O.engines = engines
     O.dt = job["dt"]
     return ids
+
+
+def make_platen(platen, ids):
+    """The platen's spheres as one clump of the platen's mass, free along its axis only (the rotations
+    are blocked); returns the clump's id. Gravity acts on the clump's mass (NewtonIntegrator)."""
+    clump = O.bodies.clump([i for i, m in zip(ids, platen["mask"], strict=True) if m])
+    state = O.bodies[clump].state
+    state.mass = platen["mass"]
+    for i in O.bodies[clump].shape.members:          # each sphere M / N, as LAMMPS gives each platen atom
+        O.bodies[i].state.mass = platen["mass"] / len(O.bodies[clump].shape.members)
+    state.blockedDOFs = "".join(a for k, a in enumerate("xyz") if k != platen["axis"]) + "XYZ"
+    state.vel = (0.0, 0.0, 0.0)
+    return clump
+
+
+def load_platen(platen, fraction):
+    """The platen's permanent external force at ``fraction`` of its full value."""
+    force = [0.0, 0.0, 0.0]
+    force[platen["axis"]] = fraction * platen["force"]
+    O.forces.setPermF(platen["clump"], tuple(force))
+
+
+def periodic(name, function, period):
+    """A PyRunner calling ``function`` every ``period`` steps: PyRunner runs its command in ``__main__``, so the
+    function is put there under ``name``. (Stopping a run for it would cost YADE's O.run wait, ~40 ms a call.)"""
+    import __main__
+    setattr(__main__, name, function)
+    O.engines = O.engines + [PyRunner(command=f"{name}()", iterPeriod=max(1, int(period)))]
+
+
+def ramp_platen(job):
+    """A platen's force ramping up linearly over its first ``ramp`` steps, updated every ramp / 100 steps (a
+    staircase of 100 steps), full from then on."""
+    platen = job["platen"]
+    ramp = int(platen.get("ramp", 0))
+    if ramp <= 0:
+        load_platen(platen, 1.0)
+        return
+    load_platen(platen, 0.0)
+    periodic("graphdem_ramp", lambda: load_platen(platen, min(1.0, O.iter / ramp)), max(1, ramp // 100))
 
 
 def vector3(v):
@@ -191,28 +247,62 @@ def record(job, out):
     for i, v in zip(ids, job.get("velocity") or [], strict=False):
         if any(v):
             O.bodies[i].state.vel = vector3(v)
-    for motion in job["motions"]:
-        for i, moving in zip(ids, motion["mask"], strict=True):
-            if moving:
-                O.bodies[i].state.vel = vector3(motion["velocity"])
+    def move(motions):
+        for motion in motions:
+            for i, moving in zip(ids, motion["mask"], strict=True):
+                if moving:
+                    O.bodies[i].state.vel = vector3(motion["velocity"])
+
+    move([m for m in job["motions"] if not m.get("from_record")])
+    groups = {name: [i for i, m in zip(ids, mask, strict=True) if m]
+              for name, mask in job.get("force_groups", {}).items()}
+    samples, every = int(job.get("force_samples", 1)), job["every"]
+
+    def group_force():
+        return {name: sum((np.array(tuple(O.forces.f(i))) for i in members), np.zeros(3))[:job["dim"]]
+                for name, members in groups.items()}
+
+    taken = []                     # (O.iter, group forces) every every / samples steps
+
+    def window():
+        """The group forces averaged over the samples of the frame interval ending now."""
+        now = [f for it, f in taken if O.iter - every < it <= O.iter]
+        if not now:
+            return group_force()
+        return {name: sum(f[name] for f in now) / len(now) for name in groups}
+
+    if groups and samples > 1:
+        # PyRunner runs inside step O.iter + 1 (O.iter counts the steps done before it)
+        periodic("graphdem_sample", lambda: taken.append((O.iter + 1, group_force())), every // samples)
+    if job.get("platen"):
+        ramp_platen(job)
     runup = time.perf_counter()
     if job["start"]:
         O.run(job["start"], True)
+    first = window()
+    move([m for m in job["motions"] if m.get("from_record")])
     runup = time.perf_counter() - runup
     free = [not f for f in job["fixed"]]
+    group_forces = {name: [] for name in groups}
     frames, steps, times, energies, forces = [], [], [], [], []
     loop = 0.0
     for f in range(job["frames"]):
+        now = first
         if f:
             start = time.perf_counter()
-            O.run(job["every"], True)
+            O.run(every, True)
             loop += time.perf_counter() - start
+            now = window()
+            taken = [t for t in taken if t[0] > O.iter - every]
         frames.append(positions(ids, job["dim"]))
         steps.append(O.iter)
         times.append(O.time)
         energies.append(kinetic_energy(ids, free))
         forces.append(force_on(ids, job["fixed"], job["dim"]))
+        for name, value in now.items():
+            group_forces[name].append(value)
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
+             **{f"group_force:{name}": np.stack(v) for name, v in group_forces.items()},
              mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
              kinematic_force=np.stack(forces), loop_seconds=loop,
              runup_seconds=runup)

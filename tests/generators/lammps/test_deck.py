@@ -51,3 +51,48 @@ def test_tilted_gravity_points_down_the_incline():
 def test_recording_must_start_on_a_dump_step():
     with pytest.raises(dem.UnsupportedSetup, match="not a multiple of the frame interval"):
         deck.record_deck(_setup(schedule=dem.Record(start=120, every=50, frames=3)))
+
+
+def _platen_setup(**extra) -> dem.Setup:
+    """Particle 1 (species 0) a moving wall, particle 2 (species 2) a one-atom platen, particle 3 soil."""
+    x = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.2], [0.0, 0.0, 0.1]])
+    groups = {"lower": np.array([True, False, False]), "platen": np.array([False, True, False])}
+    particles = dem.Particles(x, np.full(3, 0.01), np.array([0, 2, 1]), groups)
+    fields = dict(particles=particles, kinematic_species=(0, 2), n_species=3,
+                  motions=(dem.Motion("lower", (0.1, 0.0, 0.0), from_record=True),),
+                  platen=dem.Platen("platen", mass=2.0, force=-40.0, axis=2, ramp=50),
+                  force_groups=("lower", "platen"), force_samples=10)
+    fields.update(extra)
+    return _setup(**fields)
+
+
+def test_a_platen_moves_rigidly_along_z_under_its_ramped_load():
+    text = deck.record_deck(_platen_setup())
+    lines = text.splitlines()
+    assert "set             group platen mass 2" in lines
+    assert 'variable        platen_load equal "-40*(step/50*(step<50)+(step>=50))"' in lines
+    order = [next(i for i, line in enumerate(lines) if line.startswith(f"fix             {name} "))
+             for name in ("platen_integrate", "platen_load", "platen_gravity", "platen_across")]
+    assert order == sorted(order)                         # the mean force, then gravity, then none across z
+    assert "fix             platen_integrate platen nve" in lines           # no rotation integrated
+    assert "fix             platen_load platen aveforce NULL NULL v_platen_load" in lines
+    assert "fix             platen_across platen setforce 0.0 0.0 NULL" in lines
+    assert "neigh_modify    delay 0 every 1 check yes exclude type 1 1 exclude type 1 3 exclude type 3 3" in lines
+    assert "group           recorded union moving motion0 platen" in lines
+
+
+def test_a_motion_from_the_record_starts_after_the_run_up():
+    lines = deck.record_deck(_platen_setup()).splitlines()
+    run_up = lines.index("run             100")
+    move = next(i for i, line in enumerate(lines) if line.startswith("fix             motion0 motion0 move"))
+    assert move > run_up
+
+
+def test_group_forces_are_averaged_over_the_frame_interval():
+    lines = deck.record_deck(_platen_setup()).splitlines()
+    assert "compute         force0 force0 reduce sum fx fy fz" in lines
+    assert ("fix             groupforce all ave/time 5 10 50 c_force0[1] c_force0[2] c_force0[3] "
+            "f_platen_load[1] f_platen_load[2] f_platen_load[3]") in lines
+    assert deck.group_force_columns(_platen_setup(), "platen") == [f"f_groupforce[{k}]" for k in (4, 5, 6)]
+    with pytest.raises(dem.UnsupportedSetup, match="force samples"):
+        deck.record_deck(_platen_setup(force_samples=7))

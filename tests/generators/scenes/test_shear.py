@@ -1,7 +1,13 @@
-"""Direct-shear metrics (Table 4, Fig. 14) on hand-built trajectories with known answers."""
+"""Direct-shear metrics (Table 4, Fig. 14) on hand-built trajectories with known answers; the load platen's
+geometry, the normal stress sweep and the observables (no engine)."""
+
+import math
 
 import numpy as np
+import pytest
 
+from generators import config, dem, sweep
+from generators.scenes import shear
 from generators.scenes.shear import ShearMetrics
 
 
@@ -56,3 +62,124 @@ def test_blow_up_is_an_infinite_error_and_an_empty_set_is_nan():
     assert np.isinf(d["All sum"][2]) and np.isfinite(d["All sum"][1])
     narrow = ShearMetrics(metrics.kinematic, metrics.height0, 0.015, 0.0001)
     assert np.isnan(narrow.compare(truth, truth)["Above sum"]).all()
+
+
+# ---- the load platen, the normal stress sweep and the observables (no engine) ----------------------------
+
+
+@pytest.fixture
+def ci():
+    return config.load({"scale": "ci"})["shear"]
+
+
+def soil_bed(cfg, top=0.025):
+    """A square lattice of soil spheres of the largest radius whose top is at ``top``."""
+    r = cfg["radius"][1]
+    xs = np.arange(r, cfg["box"][0] - r, 2 * r)
+    xy = np.stack(np.meshgrid(xs, xs, indexing="ij"), -1).reshape(-1, 2)
+    xyz = np.column_stack([xy, np.full(len(xy), top - r)])
+    return dem.Particles(xyz, np.full(len(xy), r), np.full(len(xy), shear.SOIL), {shear.LOWER: np.zeros(len(xy), bool)})
+
+
+def test_platen_grid_lies_inside_the_frame_clear_of_the_walls(ci):
+    xy = shear.platen_grid(ci)
+    length, width, _ = ci["box"]
+    rw = ci["wall_radius"]
+    gap = shear.PLATEN_CLEARANCE * rw
+    assert np.isclose((xy - rw).min(), gap) and np.isclose(length - (xy[:, 0] + rw).max(), gap)
+    assert np.isclose(width - (xy[:, 1] + rw).max(), gap)
+    n = int(math.ceil((length - 2 * (1 + shear.PLATEN_CLEARANCE) * rw) / (ci["wall_spacing"] * rw))) + 1
+    assert len(xy) == n * n == 64
+    step = np.diff(np.unique(xy[:, 0]))
+    assert step.max() <= ci["wall_spacing"] * rw + 1e-12         # holes smaller than the smallest soil sphere
+
+
+def test_platen_rests_on_the_highest_soil_without_overlap(ci):
+    bed = soil_bed(ci)
+    bump = dem.Particles(np.array([[0.05, 0.05, 0.028]]), np.array([0.007]), np.array([shear.SOIL]),
+                         {shear.LOWER: np.array([False])})
+    soil = bed.concat(bump)
+    platen = shear.platen_particles(ci, soil)
+    assert (platen.species == shear.PLATEN).all() and np.allclose(platen.radius, ci["wall_radius"])
+    assert np.ptp(platen.x[:, 2]) == 0.0
+    d = np.linalg.norm(platen.x[:, None] - soil.x[None], axis=-1) - platen.radius[:, None] - soil.radius[None]
+    assert d.min() == pytest.approx(0.0, abs=1e-12)               # touching, not overlapping
+    assert platen.x[0, 2] - ci["wall_radius"] > 0.025 - 1e-12    # above the flat bed
+
+
+def test_loaded_packing_groups_and_species(ci):
+    box = shear.box_particles(ci, ci["box"][2])
+    packing = box.concat(soil_bed(ci))
+    full = shear.loaded(packing, dict(ci, normal_stress=1e4))
+    species = full.species
+    assert set(np.unique(species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
+    assert shear.SCENE.species == {0: "box", 1: "soil", 2: "platen"}
+    assert shear.SCENE.kinematic_species == (shear.BOX, shear.PLATEN)
+    g = full.groups
+    assert np.array_equal(g[shear.PLATEN_GROUP], species == shear.PLATEN)
+    assert np.array_equal(g[shear.LOWER] | g[shear.UPPER], species == shear.BOX)
+    assert not (g[shear.LOWER] & g[shear.UPPER]).any()
+    assert (full.x[g[shear.UPPER], 2] >= shear.split_height(ci)).all()
+
+
+def test_platen_force_counts_its_weight_in_the_load(ci):
+    row = dict(ci, normal_stress=2.0e4)
+    area = ci["box"][0] * ci["box"][1]
+    force = shear.platen_force(row)
+    assert force < 0
+    assert -force + ci["platen_mass"] * ci["gravity"] == pytest.approx(2.0e4 * area)
+
+
+def test_sweep_crosses_modulus_and_normal_stress(ci):
+    table = sweep.build("shear", ci)
+    assert len(table) == 2 * 2 * len(ci["sweep"]["displacements"])
+    assert sorted(set(table["normal_stress"])) == [5.0e3, 5.0e4]
+    assert sorted(set(table["young"])) == [1.0e7, 1.0e8]
+    assert shear.SCENE.properties(table.iloc[0].to_dict()) == {"young": 1.0e7, "normal_stress": 5.0e3}
+    assert shear.SCENE.log_scaled_properties == ("young", "normal_stress")
+
+
+def test_a_platen_heavier_than_the_smallest_load_is_refused(ci):
+    from generators.config import ConfigError
+    heavy = dict(ci, platen_mass=10.0)
+    with pytest.raises(ConfigError, match="platen_mass"):
+        shear.SCENE.check(heavy)
+    shear.SCENE.check(ci)
+
+
+def test_observables_from_group_forces_and_positions(ci):
+    """Upper frame and platen x forces add to the shear force; the platen's z force over L W is the normal stress."""
+    groups = {shear.LOWER: np.array([True, False, False, False]), shear.UPPER: np.array([False, True, False, False]),
+              shear.PLATEN_GROUP: np.array([False, False, True, True])}
+    position = np.zeros((3, 4, 3))
+    position[:, 0, 0] = [0.0, 0.001, 0.002]
+    position[:, 2:, 2] = np.array([0.03, 0.0299, 0.0301])[:, None]
+    upper = np.array([[0.0, 0, 0], [5.0, 1, 0], [7.0, 0, 0]])
+    platen = np.array([[0.0, 0, 100.0], [1.0, 0, 90.0], [-1.0, 0, 110.0]])
+    out = shear.observables(ci, position, {shear.UPPER: upper, shear.PLATEN_GROUP: platen}, groups)
+    area = ci["box"][0] * ci["box"][1]
+    np.testing.assert_allclose(out["shear_force"], [0.0, 6.0, 6.0])
+    np.testing.assert_allclose(out["shear_stress"], np.array([0.0, 6.0, 6.0]) / area)
+    np.testing.assert_allclose(out["shear_displacement"], [0.0, 0.001, 0.002])
+    np.testing.assert_allclose(out["normal_stress"], np.array([100.0, 90.0, 110.0]) / area)
+    np.testing.assert_allclose(out["normal_displacement"], [0.0, -0.0001, 0.0001], atol=1e-12)
+
+
+def test_peak_shear_stress():
+    tau = np.array([0.0, 1.0, 5.0, 2.0, 3.0])
+    assert shear.peak_shear_stress(tau) == 5.0
+    assert shear.peak_shear_stress(tau, smooth=3) == pytest.approx(10.0 / 3)
+    assert math.isnan(shear.peak_shear_stress(np.array([np.nan, np.nan])))
+
+
+def test_dem_peak_shear_stress_metric_from_the_observables():
+    from types import SimpleNamespace
+    traj = SimpleNamespace(observables={"shear_stress": np.array([0.0, 2.0e3, 4.0e3, 3.0e3])},
+                           parameters={"normal_stress": 1.0e4})
+    assert ShearMetrics.dem_values(traj) == {"Peak shear stress": 4.0e3, "Peak stress ratio": 0.4}
+    old = SimpleNamespace(observables={}, parameters={})
+    assert all(math.isnan(v) for v in ShearMetrics.dem_values(old).values())
+    from generators import crosscheck
+    assert crosscheck.metric_names("shear")[-2:] == ("Peak shear stress", "Peak stress ratio")
+    assert crosscheck.metric_names("meteorite") == tuple(__import__("generators.scenes.meteorite",
+                                                                    fromlist=["SCENE"]).SCENE.metrics.names)

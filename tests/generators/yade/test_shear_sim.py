@@ -22,23 +22,39 @@ def tiny(tmp_path_factory):
             "packing": engine.read_packing(root / "packing")}
 
 
-def test_count_constant_types_soil_and_box(tiny):
+def test_count_constant_types_soil_box_and_platen(tiny):
     traj, packing = tiny["traj"], tiny["packing"]
-    assert traj.position.shape == (6, len(packing.x), 3)
-    assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL}
-    assert np.array_equal(traj.kinematic, traj.species == shear.BOX)
+    platen = len(shear.platen_grid(tiny["cfg"]))
+    assert traj.position.shape == (6, len(packing.x) + platen, 3)
+    assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
+    assert (traj.species == shear.PLATEN).sum() == platen
+    assert np.array_equal(traj.kinematic, np.isin(traj.species, (shear.BOX, shear.PLATEN)))
+
+
+def test_the_written_file_holds_the_shear_observables(tiny):
+    """Read back from the H5MD file: one value per frame of each, the normal stress near the set value."""
+    traj = tiny["traj"]
+    for name in shear.OBSERVABLES:
+        assert traj.observables[name].shape == (6,) and np.isfinite(traj.observables[name]).all()
+    assert traj.observables["normal_stress"].mean() == pytest.approx(tiny["row"]["normal_stress"], rel=0.1)
+    assert traj.observables["shear_displacement"][-1] == pytest.approx(tiny["row"]["displacement"], rel=1e-6)
     assert (traj.species == shear.SOIL).sum() > 10
 
 
 def test_box_particles_follow_their_prescribed_motion_exactly(tiny):
-    """Lower half: x0 + v t (v chosen so the last frame is at exactly the displacement); upper half: held."""
+    """Lower half: x0 + v t from frame 0 on (v chosen so the last frame is at exactly the displacement; held
+    through the loading before it); upper half: held."""
     traj, packing = tiny["traj"], tiny["packing"]
-    lower = packing.groups[shear.LOWER]
-    upper = (packing.species == shear.BOX) & ~lower
+    n = len(packing.x)
+    lower = np.zeros(len(traj.species), bool)
+    lower[:n] = packing.groups[shear.LOWER]
+    upper = np.zeros(len(traj.species), bool)
+    upper[:n] = (packing.species == shear.BOX) & ~packing.groups[shear.LOWER]
     t = traj.time - traj.time[0]
-    expected = packing.x[lower][None] + np.outer(t, [traj.parameters["shear_speed"], 0.0, 0.0])[:, None, :]
+    x0 = np.concatenate([packing.x, np.zeros((len(traj.species) - n, 3))])
+    expected = x0[lower][None] + np.outer(t, [traj.parameters["shear_speed"], 0.0, 0.0])[:, None, :]
     np.testing.assert_allclose(traj.position[:, lower], expected, rtol=0, atol=1e-7)      # float32 storage
-    np.testing.assert_allclose(traj.position[:, upper], np.repeat(packing.x[upper][None], 6, axis=0), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(traj.position[:, upper], np.repeat(x0[upper][None], 6, axis=0), rtol=0, atol=1e-7)
     shift = traj.position[-1, lower, 0] - traj.position[0, lower, 0]
     np.testing.assert_allclose(shift, tiny["row"]["displacement"], rtol=1e-5)
 
@@ -54,9 +70,10 @@ def test_no_soil_escapes_the_box(tiny):
 
 def test_modulus_is_a_log_scaled_property_and_time_step_follows_it(tiny):
     traj, row = tiny["traj"], tiny["row"]
-    assert traj.property_names == ("young",)
+    assert traj.property_names == ("young", "normal_stress")
     np.testing.assert_allclose(traj.properties[:, 0], row["young"], rtol=1e-6)
-    assert traj.parameters["log_scaled_properties"] == ["young"]
+    np.testing.assert_allclose(traj.properties[:, 1], row["normal_stress"], rtol=1e-6)
+    assert traj.parameters["log_scaled_properties"] == ["young", "normal_stress"]
     dt, limit, _ = shear.dem_step(row, "test")
     assert traj.parameters["dem_time_step"] == pytest.approx(dt) and dt < limit
     softer = dict(row, young=row["young"] / 100)
@@ -103,4 +120,7 @@ def test_two_threads_run_the_same_shear_test(tiny, tmp_path):
     motion = np.abs(tiny["traj"].position[-1, soil] - tiny["traj"].position[0, soil]).max()
     difference = np.abs(two.position[:, soil] - tiny["traj"].position[:, soil]).max()
     assert difference < 1e-3 * motion
-    assert np.array_equal(two.position[:, ~soil], tiny["traj"].position[:, ~soil])
+    box = two.species == shear.BOX
+    assert np.array_equal(two.position[:, box], tiny["traj"].position[:, box])
+    platen = two.species == shear.PLATEN      # moved by its summed contact forces: round-off as the soil
+    assert np.abs(two.position[:, platen] - tiny["traj"].position[:, platen]).max() < 1e-3 * motion
