@@ -5,7 +5,9 @@ contact law (no tangential dashpot in LAMMPS; the shear's constant kn = E r_mean
 viscous settling). Before that they were pinned across the scene x engine redesign. metrics.csv was re-pinned
 when it gained the article-style Acc, the DEM ensemble and plausibility rows and the scenes took the derived
 training defaults: the sweeps, packings, positions and every constant-velocity value stayed as they were (the
-old acc_percent is the new acc_pooled_percent)."""
+old acc_percent is the new acc_pooled_percent). The shear was re-pinned when it became a test under a normal
+load (a platen, the normal stress swept), and the slide's Graph-DEM rows when its contact correction was
+switched on; the slide's and the meteorite's data and constant-velocity rows stayed as they were."""
 
 import json
 import math
