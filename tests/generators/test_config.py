@@ -41,8 +41,9 @@ def test_out_of_range_names_key_and_bounds():
 
 def test_contact_correction_is_null_or_its_two_keys():
     defaults = config.load()
-    assert defaults["slide"]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 50}
-    assert all(defaults[scene]["runtime"]["contact_correction"] is None for scene in ("meteorite", "shear", "collapse"))
+    for scene in ("slide", "meteorite"):                  # chosen on each scene's valid split (docs/surrogate.md)
+        assert defaults[scene]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 50}
+    assert all(defaults[scene]["runtime"]["contact_correction"] is None for scene in ("shear", "collapse"))
     assert config.load({"slide": {"runtime": {"contact_correction": None}}})["slide"]["runtime"]["contact_correction"] \
         is None
     on = {"allowed_overlap": 0.01, "iterations": 20}
