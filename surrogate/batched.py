@@ -11,12 +11,15 @@ rollout up to the rounding of the larger matrix products.
 
 The sims advance in lock-step from the model's history K; a sim leaves the batch after its last
 frame or its first non-finite one. What batching saves is the per-call overhead of the network
-(Python, dispatch, small kernels) shared by the sims of a step; the arithmetic is the same.
+(Python, dispatch, small kernels) shared by the sims of a step; the arithmetic is the same. The
+simulator may be an :class:`surrogate.ensemble.Ensemble`, and each sim's graph is capped and counted
+as in a single rollout where the model has a neighbour cap.
 """
 
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import torch
 
@@ -26,10 +29,13 @@ from surrogate.runtime import Runtime
 from surrogate.samples import Sim
 from surrogate.simulator import LearnedSimulator, stack_graphs
 
+if TYPE_CHECKING:
+    from surrogate.ensemble import Ensemble
+
 
 @torch.inference_mode()
-def rollout_batch(simulator: LearnedSimulator, sims: list[Sim], runtime: Runtime, n_frames: int | None = None,
-                  forced: bool = False) -> list[Rollout]:
+def rollout_batch(simulator: LearnedSimulator | Ensemble, sims: list[Sim], runtime: Runtime,
+                  n_frames: int | None = None, forced: bool = False) -> list[Rollout]:
     """One :class:`Rollout` per sim of ``sims`` (frames K .. ``n_frames``-1, default each sim's own
     count), computed together. ``runtime`` and ``forced`` as in :func:`surrogate.rollout.rollout` (the
     simulator prepared with :func:`surrogate.runtime.apply`).
@@ -97,5 +103,5 @@ def rollout_batch(simulator: LearnedSimulator, sims: list[Sim], runtime: Runtime
         steps_done = max((first_bad[i] + 1 if first_bad[i] is not None else totals[i]) - k, 1)
         timing = {**step_timing(counts[i], steps_done), "batch_size": size, "batch_seconds": seconds}
         out.append(Rollout(positions[i].cpu().numpy(), k, first_bad[i], seconds / size, t_graph[i], timing,
-                           t_network / size))
+                           t_network / size, simulator.n_models, simulator.max_neighbours))
     return out

@@ -30,8 +30,15 @@ def cmd_dataset(args) -> None:
         if args.sims is None:
             raise SystemExit(f"graphdem dataset: {args.table} has no path column; give --sims, the folder of <id>.h5")
         table = dataset.split_table(table, Path(args.sims))
-    stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius)
+    stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius, args.max_neighbours)
     print(json.dumps(stats, indent=2))
+    counted = stats["neighbour_counts"]
+    line = (f"neighbours within R = {stats['connectivity_radius']:g} on the train split: at most {counted['max']}, "
+            f"99th percentile {counted['p99']}, mean {counted['mean']:.3g} per receiver")
+    if counted["max_neighbours"] is not None:
+        line += (f"; a cap of {counted['max_neighbours']} truncates {100 * counted['capped_receiver_fraction']:.3g} % "
+                 f"of the receivers and drops {100 * counted['dropped_edge_fraction']:.3g} % of the edges")
+    print(line)
     rate = stats.get("contact_miss_rate")
     if rate is not None and rate > dataset.CONTACT_MISS_WARNING:
         print(f"WARNING: R = {stats['connectivity_radius']:g} misses {100 * rate:.2g} % of the next frame's contacts "
@@ -99,13 +106,14 @@ def cmd_train(args) -> None:
 def cmd_rollout(args) -> None:
     import torch
 
-    from surrogate import checkpoint, evaluate, rollout
+    from surrogate import ensemble, evaluate, rollout
     from surrogate.samples import load_sim
     _logging()
     torch.set_num_threads(max(1, args.threads))
-    simulator, meta = checkpoint.simulator_from(args.checkpoint, args.device)
+    simulator, metas = ensemble.load(args.checkpoint, args.device)
+    meta = metas[0]
     simulator, rt = _runtime(args, simulator)
-    sha = checkpoint.digest(args.checkpoint)
+    sha = ensemble.digest(args.checkpoint)
     for path in evaluate.data_files(args.data):
         sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [],
                        allow_other_scene=args.allow_other_scene)
@@ -113,9 +121,13 @@ def cmd_rollout(args) -> None:
         out = rollout.write(Path(args.out_dir) / f"{sim.id}.h5", sim, result, args.checkpoint, sha)
         per_frame = result.seconds / max(result.n_predicted, 1)
         status = "" if result.first_nonfinite is None else f", NON-FINITE from frame {result.first_nonfinite}"
+        models = f", {result.models} models averaged" if result.models > 1 else ""
+        cap = ("" if result.max_neighbours is None else
+               f"; neighbour cap {result.max_neighbours}: {result.timing['capped']} receivers capped and "
+               f"{result.timing['dropped']} edges dropped over the predicted frames")
         print(f"{out}: {result.n_predicted} frames predicted in {result.seconds:.2f} s "
-              f"({1000 * per_frame:.1f} ms per frame, of which graph building "
-              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status})")
+              f"({1000 * per_frame:.1f} ms per frame{models}, of which graph building "
+              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status}){cap}")
 
 def cmd_evaluate(args) -> None:
     import pandas as pd
@@ -268,8 +280,14 @@ def cmd_performance_report(args) -> None:
           f"{main['speedup_vs_reference']:.1f}x faster than the DEM reference, {matched}, break-even at "
           f"{main['break_even_substeps']:.0f} DEM sub-steps per frame")
 
-def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True) -> None:
-    p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
+def _checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True, ensemble: bool = False) -> None:
+    if ensemble:
+        p.add_argument("--checkpoint", type=Path, nargs="+", required=True,
+                       help="a best.pt or last.pt written by train; several: an ensemble, every step the mean of "
+                            "their accelerations is integrated (the models must share history, R, the neighbour "
+                            "cap, the frame interval, box and types; docs/surrogate.md)")
+    else:
+        p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
     p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--allow-other-scene", action="store_true",
@@ -336,6 +354,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sims", type=Path, help="folder of <id>.h5 files, for a table without a path column")
     p.add_argument("--out-dir", type=Path, required=True)
     p.add_argument("--connectivity-radius", type=float, required=True, help="graph radius R (m)")
+    p.add_argument("--max-neighbours", type=int,
+                   help="a neighbour cap (the model's max_neighbours): stats.json reports the share of receivers "
+                        "it truncates and of edges it drops on the train split; default: no cap")
     p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
     p.set_defaults(func=cmd_dataset)
 
@@ -368,8 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("rollout", help="predict every frame after the first K of each sim; write H5MD",
                        description="Roll the checkpoint's model out on H5MD sims: the first K frames come "
                                    "from the data, every later frame is predicted; kinematic particles follow "
-                                   "the data. Writes <out-dir>/<sim>.h5 in the sims' layout.")
-    _checkpoint_and_data(p)
+                                   "the data. Writes <out-dir>/<sim>.h5 in the sims' layout. Several "
+                                   "--checkpoint: their ensemble (the mean acceleration of the models).")
+    _checkpoint_and_data(p, ensemble=True)
     p.add_argument("--out-dir", type=Path, required=True)
     p.set_defaults(func=cmd_rollout)
 
@@ -379,8 +401,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "where the scene is known, beside a constant-velocity baseline and, with "
                                    "--ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of "
                                    "the test-set mean curve (acc_percent), beside the pooled one "
-                                   "(acc_pooled_percent). The sims are --data, or one split of a --splits table.")
-    _checkpoint_and_data(p, data_required=False)
+                                   "(acc_pooled_percent). The sims are --data, or one split of a --splits table. "
+                                   "Several --checkpoint: their ensemble is scored as Graph-DEM.")
+    _checkpoint_and_data(p, data_required=False, ensemble=True)
     p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
                    help="which split the sims are (with --data) or which to take from --splits; auto: test where "

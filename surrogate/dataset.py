@@ -4,6 +4,13 @@ Velocities and accelerations are finite differences of positions per frame (arti
 ``v_t = p_t - p_{t-1}``, ``a_t = v_t - v_{t-1}``, in metres per frame (squared). Their mean and
 standard deviation per axis over the moving (non-kinematic) particles of the train split only
 are what the model is normalised with.
+
+The statistics also count, at the connectivity radius R, every receiver's senders in the graph
+(``neighbour_counts``; :mod:`surrogate.neighbours`): over every particle (kinematic ones included:
+a cap applies to them too) of every frame but the last (the frames a graph is built on), in float32
+positions as training reads them. Their largest value, 99th percentile, mean and histogram, and for
+a given cap (the model config's ``max_neighbours``) the share of receivers it truncates and of edges
+it drops, let a cap be chosen from the data.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from tqdm import tqdm
 from generators import h5md
 from generators.atomic import atomic_path
 from surrogate.contacts import contact_misses
+from surrogate.neighbours import Histogram, check_cap, neighbour_counts
 
 CONTACT_MISS_WARNING = 0.01      # `graphdem dataset` warns above this contact-miss rate of R on the train split
 
@@ -62,10 +70,23 @@ def split_table(sweep: pd.DataFrame, sims_dir: Path) -> pd.DataFrame:
                          "path": [str(Path(sims_dir) / f"{i}.h5") for i in sweep["id"]]})
 
 
-def statistics(paths: list[Path], connectivity_radius: float) -> dict:
-    """Normalisation statistics of the train sims ``paths`` plus dataset metadata."""
+def frame_neighbours(traj: h5md.Trajectory, connectivity_radius: float) -> Histogram:
+    """Receivers per neighbour count at R = ``connectivity_radius`` over the frames of ``traj`` a graph is
+    built on (all but the last), in float32 positions (module docstring)."""
+    position = np.asarray(traj.position, np.float32)
+    histogram = Histogram()
+    for frame in position[:-1]:
+        histogram.add(neighbour_counts(frame, connectivity_radius, traj.kinematic))
+    return histogram
+
+
+def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: int | None = None) -> dict:
+    """Normalisation statistics of the train sims ``paths`` plus dataset metadata; the neighbour counts at
+    R and what the cap ``max_neighbours`` (null: none) cuts of them (module docstring)."""
     if not paths:
         raise ValueError("the train split is empty: cannot compute normalisation statistics")
+    cap = check_cap(max_neighbours, "max_neighbours")
+    neighbours = Histogram()
     vel = acc = None
     meta = {}
     misses = [0, 0]                      # next-frame contacts missed by a graph of radius R, and all of them
@@ -90,6 +111,7 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         missed, contacts = contact_misses(traj.position, traj.radius, connectivity_radius, traj.kinematic)
         misses[0] += missed
         misses[1] += contacts
+        neighbours.merge(frame_neighbours(traj, connectivity_radius))
         p = np.asarray(traj.position, np.float64)[:, moving]
         v = np.diff(p, axis=0)
         vel.add(v)
@@ -113,6 +135,9 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
         "contact_miss_rate": misses[0] / misses[1] if misses[1] else None, "next_frame_contacts": int(misses[1]),
         "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
         "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
+        # every receiver's senders within R (itself not counted) over the train frames a graph is built on, and
+        # the share of receivers and edges the cap max_neighbours cuts (surrogate/neighbours.py)
+        "neighbour_counts": neighbours.summary(cap),
         # node properties f_i (radius and the H5MD properties) over the moving train particles; those the
         # data marks as log-scaled (a modulus spans decades) are normalised as ln(value)
         "property_stats": {name: {"mean": float(m.mean[0]), "std": float(max(m.std[0], floor)),
@@ -120,14 +145,15 @@ def statistics(paths: list[Path], connectivity_radius: float) -> dict:
     }
 
 
-def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float) -> dict:
-    """Write splits.csv (id, split, path) and stats.json (train split only) into ``out_dir``."""
+def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float, max_neighbours: int | None = None) -> dict:
+    """Write splits.csv (id, split, path) and stats.json (train split only) into ``out_dir``; ``max_neighbours``
+    is the neighbour cap whose cut the stats report (null: none)."""
     missing = {"id", "split", "path"} - set(splits.columns)
     if missing:
         raise ValueError(f"a split table needs the columns id, split and path; missing {sorted(missing)}")
     splits = splits[["id", "split", "path"]]
     train = [Path(p) for p in splits.loc[splits["split"] == "train", "path"]]
-    stats = statistics(train, connectivity_radius)
+    stats = statistics(train, connectivity_radius, max_neighbours)
     stats["splits"] = splits["split"].value_counts().to_dict()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -5,7 +5,6 @@ metrics_per_step.csv with the checkpoint, config and code version they came from
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import subprocess
@@ -19,7 +18,7 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
-from surrogate import checkpoint
+from surrogate import ensemble
 from surrogate.baseline import constant_velocity
 from surrogate.metrics import accuracy, curve_accuracy, frame_list, of_scene, plausibility
 from surrogate.rollout import rollout, rollout_mse
@@ -32,6 +31,8 @@ log = logging.getLogger("graphdem.evaluate")
 MODEL, BASELINE, ENSEMBLE = "graphdem", "constant_velocity", "dem_ensemble"
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
+# rows of a model with a neighbour cap: per predicted frame, the receivers it capped and the edges it dropped
+CAPPED, DROPPED = "capped receivers per frame", "dropped edges per frame"
 
 
 @dataclass
@@ -45,6 +46,8 @@ class Evaluated:
     predictions: dict[str, np.ndarray]
     first_nonfinite: dict[str, int | None]
     seconds_per_frame: float = float("nan")   # Graph-DEM wall time per predicted frame
+    capped_per_frame: float = float("nan")    # receivers the neighbour cap capped per predicted frame (NaN: no cap)
+    dropped_per_frame: float = float("nan")   # edges the neighbour cap dropped per predicted frame
 
 
 def code_version() -> str:
@@ -182,7 +185,7 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
     return rows
 
 
-def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir: Path | None = None,
+def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, frames: list[int] | None = None,
              ensemble_dir: Path | None = None, threads: int = 1,
              progress: bool = True,
@@ -196,15 +199,23 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
     name the split the sims come from in every row written; ``runtime``
     sets the switches of rollouts made here (:mod:`surrogate.runtime`), on ``device``
     (:mod:`surrogate.devices`).
+
+    Several checkpoints are scored as one model, their :class:`surrogate.ensemble.Ensemble`: the rows name
+    every checkpoint (``checkpoint``, separated by spaces; ``checkpoint_sha``, joined by '+'), and the
+    seconds per frame are the ensemble's. A model with a neighbour cap adds the rows ``capped receivers per
+    frame`` and ``dropped edges per frame`` (means over the sims).
     """
     torch.set_num_threads(max(1, int(threads)))
-    simulator, meta = checkpoint.simulator_from(checkpoint_path, device)
+    simulator, metas = ensemble.load(checkpoint_path, device)
+    meta = metas[0]
+    name = ensemble.label(checkpoint_path)
     if runtime is not None:
         apply_runtime(simulator, runtime)
     if int(history) < int(meta["model"]["history"]):
-        raise ValueError(f"{checkpoint_path} reads a history of K = {meta['model']['history']} frames; "
+        raise ValueError(f"{name} reads a history of K = {meta['model']['history']} frames; "
                          f"--history {history} gives fewer (allowed: {meta['model']['history']} or more)")
-    sha = checkpoint.digest(checkpoint_path)
+    sha = ensemble.digest(checkpoint_path)
+    cap = simulator.max_neighbours
     props = list(meta["model"].get("properties") or [])
     per_step, sims = [], []
     for path in tqdm(data_files(data), desc="evaluate", unit="sim", disable=not progress):
@@ -218,17 +229,21 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
             pred, bad = np.asarray(predicted.position, np.float64), predicted.parameters.get("rollout_first_nonfinite")
             bad = None if bad in (None, "null", -1) else int(bad)
             seconds = float(predicted.parameters.get("rollout_seconds_per_frame", np.nan))
+            computed = max((traj.n_frames if bad is None else bad + 1) - history, 1)      # frames predicted
+            capped, dropped = (float(predicted.parameters.get(key, np.nan)) / computed
+                               for key in ("rollout_capped_receivers", "rollout_dropped_edges"))
         else:
             result = rollout(simulator, sim, runtime=runtime, given=history)
             pred, bad = result.position, result.first_nonfinite
             seconds = result.seconds / max(result.n_predicted, 1)
+            capped, dropped = (result.timing[key] / max(result.n_predicted, 1) for key in ("capped", "dropped"))
         truth = np.asarray(traj.position, np.float64)
         baseline = constant_velocity(truth, traj.kinematic, history)
         predictions, nonfinite = {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None}
         if ensemble_dir is not None:
             predictions[ENSEMBLE] = read_ensemble(Path(ensemble_dir) / f"{sim.id}.h5", traj)
             nonfinite[ENSEMBLE] = None
-        entry = Evaluated(sim.id, traj, truth, predictions, nonfinite, seconds)
+        entry = Evaluated(sim.id, traj, truth, predictions, nonfinite, seconds, capped, dropped)
         if bad is not None:
             log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
         sims.append(entry)
@@ -237,16 +252,20 @@ def evaluate(checkpoint_path: Path, data: list[Path], history: int, rollouts_dir
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)
     table = summarise(steps, frames)
-    timing = pd.DataFrame([{"scene": table["scene"].iloc[0], "method": MODEL, "metric": SECONDS, "sim": "all",
-                            "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])),
-                            "n_sims": len(sims)}])
-    table = pd.concat([table, timing.reindex(columns=table.columns)], ignore_index=True)
+    scene = table["scene"].iloc[0]
+    timing = [{"scene": scene, "method": MODEL, "metric": SECONDS, "sim": "all",
+               "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])), "n_sims": len(sims)}]
+    if cap is not None:
+        timing += [{"scene": scene, "method": MODEL, "metric": metric, "sim": "all",
+                    "mean_prediction": float(np.mean([getattr(s, field) for s in sims])), "n_sims": len(sims)}
+                   for metric, field in ((CAPPED, "capped_per_frame"), (DROPPED, "dropped_per_frame"))]
+    table = pd.concat([table, pd.DataFrame(timing).reindex(columns=table.columns)], ignore_index=True)
+    configs = [{"model": m["model"], "train": m["train"]} for m in metas]
     provenance = {"split": split, "split_note": split_note, "history": int(history),
-                  "checkpoint": str(checkpoint_path), "checkpoint_sha": sha,
-                  "config_sha": hashlib.sha256(json.dumps({k: meta[k] for k in ("model", "train", "stats")},
-                                                          sort_keys=True).encode()).hexdigest()[:12],
+                  "checkpoint": name, "checkpoint_sha": sha,
+                  "config_sha": ensemble.config_digest(metas),
                   "code_version": code_version(),
-                  "config": json.dumps({"model": meta["model"], "train": meta["train"]}, sort_keys=True)}
+                  "config": json.dumps(configs[0] if len(configs) == 1 else configs, sort_keys=True)}
     for df in (table, steps):
         for key, value in provenance.items():
             df[key] = value
@@ -367,6 +386,8 @@ def report(table: pd.DataFrame) -> str:
     for _, row in overall.iterrows():
         if row["metric"] == SECONDS:
             value = f"{1000 * row['mean_prediction']:.1f} ms per predicted frame (wall time, mean over sims)"
+        elif row["metric"] in (CAPPED, DROPPED):
+            value = f"{row['mean_prediction']:.4g} (neighbour cap; mean over sims)"
         elif row["metric"] == MSE:
             value = f"{row['mse']:.4g} m^2"
             if row["n_blown_up"]:

@@ -22,17 +22,23 @@ the k-d tree below ``CPU_CELLS_FROM`` particles and the cell list from there. Me
 thread (``python -m surrogate.bench_graph``, table in docs/surrogate.md): the k-d tree is 1.6-2x
 faster at 700 particles and up to 1.4x at 2 000, the two trade places around 6 000, and from
 20 000 the cell list was 6-39 % faster in every run. ``method`` forces either one.
+
+A neighbour cap (model config ``max_neighbours`` = N; null: none), :func:`cap_neighbours`: each receiver
+keeps its N nearest senders of the radius graph, by the same squared distance, ties broken by the lower
+sender index, and its self edge (not counted). The edges it drops and the receivers it caps are
+counted and returned, never dropped silently. Without a cap the graph is the radius graph unchanged.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import torch
-from scipy.spatial import cKDTree
+
+from surrogate.neighbours import check_cap, close_pairs
 
 Method = Literal["auto", "kdtree", "cells"]
 CANDIDATE_CHUNK = 1 << 22      # candidate pairs checked at once by the cell list (bounds its working memory)
@@ -60,6 +66,42 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
     return both_ways(pairs, len(x), self_loops)
 
 
+class CappedEdges(NamedTuple):
+    """A graph after the neighbour cap: its edges, the receivers that had more senders than the cap, and
+    the edges dropped."""
+
+    edge_index: torch.Tensor
+    capped_receivers: int
+    dropped_edges: int
+
+
+def cap_neighbours(edge_index: torch.Tensor, pos: torch.Tensor, max_neighbours: int) -> CappedEdges:
+    """``edge_index`` [2, E] (senders, receivers) with each receiver's senders other than itself cut to its
+    ``max_neighbours`` nearest by the squared distance of ``pos`` [N, D] (summed axis by axis in pos's
+    dtype, as the radius graph measures), ties broken by the lower sender index; self edges are always
+    kept. The kept edges stay in their order; a graph without a receiver over the cap is returned as given."""
+    cap = check_cap(max_neighbours)
+    sender, receiver = edge_index
+    other = sender != receiver
+    counts = torch.bincount(receiver[other], minlength=len(pos))
+    over = counts > cap
+    if not bool(over.any()):
+        return CappedEdges(edge_index, 0, 0)
+    candidate = (other & over.index_select(0, receiver)).nonzero().squeeze(1)
+    s, r = sender.index_select(0, candidate), receiver.index_select(0, candidate)
+    squared = squared_distance(pos.detach().T.contiguous(), s, r)
+    # order by (receiver, squared distance, sender): stable sorts from the last key to the first
+    order = torch.argsort(s, stable=True)
+    order = order.index_select(0, torch.argsort(squared.index_select(0, order), stable=True))
+    order = order.index_select(0, torch.argsort(r.index_select(0, order), stable=True))
+    ranked = r.index_select(0, order)
+    rank = torch.arange(len(ranked), device=ranked.device) - torch.searchsorted(ranked, ranked)
+    dropped = candidate.index_select(0, order[rank >= cap])
+    keep = torch.ones(edge_index.shape[1], dtype=torch.bool, device=edge_index.device)
+    keep[dropped] = False
+    return CappedEdges(edge_index[:, keep], int(over.sum()), int(dropped.numel()))
+
+
 def choose_method(pos: torch.Tensor) -> Method:
     """The measured rule: the cell list off the CPU and for ``CPU_CELLS_FROM`` particles or more."""
     return "cells" if pos.device.type != "cpu" or len(pos) >= CPU_CELLS_FROM else "kdtree"
@@ -75,14 +117,9 @@ def both_ways(pairs: torch.Tensor, n: int, self_loops: bool) -> torch.Tensor:
 
 
 def kdtree_pairs(pos: torch.Tensor, radius: float) -> torch.Tensor:
-    """[2, P] pairs (i < j) closer than radius, found by scipy's cKDTree on the CPU."""
-    x = pos.cpu().numpy()
-    if len(x) < 2:
-        return torch.empty((2, 0), dtype=torch.int64, device=pos.device)
-    # the tree measures in float64: a little beyond R, so that the strict test below decides
-    pairs = cKDTree(x).query_pairs(radius * (1 + 1e-6), output_type="ndarray")
-    squared = ((x[pairs[:, 0]] - x[pairs[:, 1]]) ** 2).sum(axis=1)
-    pairs = pairs[squared < np.asarray(radius * radius, dtype=x.dtype)]
+    """[2, P] pairs (i < j) closer than radius, found by scipy's cKDTree on the CPU
+    (:func:`surrogate.neighbours.close_pairs`)."""
+    pairs = close_pairs(pos.cpu().numpy(), radius)
     return torch.from_numpy(pairs.T.astype(np.int64)).to(pos.device)
 
 

@@ -5,7 +5,7 @@ table tells the two kinds apart:
 
 - ``n/a``: the column does not apply to the row's metric (no Acc or truth for the rollout MSE or for a
   metric that compares the prediction with the truth, such as the slide's Dis; no MSE for a scene metric;
-  only the mean for the rollout timing);
+  only the mean for the rollout timing and the neighbour cap's counts);
 - ``undefined``: the column applies but has no value, with the reason: a blown-up rollout (named), or a
   quantity whose DEM truth is zero or undefined in every scored frame (e.g. the meteorite's crater depth
   before any ground disc moved), or a rollout without a recorded timing.
@@ -23,6 +23,7 @@ from generators.atomic import atomic_path
 
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
+CAP_COUNTS = {"capped receivers per frame", "dropped edges per frame"}     # a model with a neighbour cap
 # plausibility measures without an Acc (the kinetic energy has one: a metric with a truth)
 PLAUSIBILITY = {"Max overlap", "P99 overlap", "Outside box"}
 
@@ -37,6 +38,7 @@ COUNTS = ("n_sims", "n_frames", "n_frames_left_out", "n_blown_up")
 APPLIES = {
     "mse": {"mse", "mean_prediction", "n_sims", "n_frames", "n_blown_up"},
     "seconds": {"mean_prediction", "n_sims"},
+    "cap": {"mean_prediction", "n_sims"},
     "truth": {"acc_percent", "acc_frames", "acc_pooled_percent", "mean_truth", "mean_prediction", "n_sims",
               "n_frames", "n_frames_left_out", "n_blown_up"},
     "pair": {"mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
@@ -45,6 +47,7 @@ APPLIES = {
 NOT_APPLICABLE = {
     "mse": "the rollout MSE is its own error measure: no Acc, no truth value, no frames left out",
     "seconds": "the rollout wall time per predicted frame: a mean over sims only",
+    "cap": "what the neighbour cap cut per predicted frame of the rollout: a mean over sims only",
     "truth": "a scene metric has Acc against its truth, not an MSE",
     "pair": "this metric compares the prediction with the truth frame by frame: no truth value of its own, "
             "so no Acc and no MSE",
@@ -72,6 +75,8 @@ def _kind(row: pd.Series, metric_names: dict[str, set[str]]) -> str:
         return "mse"
     if metric == SECONDS:
         return "seconds"
+    if metric in CAP_COUNTS:
+        return "cap"
     if metric in PLAUSIBILITY:
         return "plausibility"
     if metric in metric_names["truth"]:
@@ -109,6 +114,8 @@ def why_undefined(row: pd.Series, kind: str, column: str) -> str:
         return f"undefined in all {int(frames)} scored frames"
     if kind == "seconds":
         return "no rollout timing recorded"
+    if kind == "cap":
+        return "the rollouts read did not record the neighbour cap's counts"
     return "not defined for these sims"
 
 

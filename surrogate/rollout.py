@@ -9,12 +9,19 @@ After the network's step, the runtime's corrections apply to the moving particle
 ``contact_correction`` pushes too-deep overlaps apart (keeping the particles in the box when
 ``keep_in_domain`` is on; :mod:`surrogate.correction`). Both act on the frame that the next step
 reads, so the next step's velocities (position differences) are the corrected ones.
+
+The simulator may be an :class:`surrogate.ensemble.Ensemble` (the mean acceleration of several models);
+the rollout records how many models it ran (``Rollout.models``). With the model's neighbour cap
+(``max_neighbours``), every step's graph keeps each receiver's nearest senders; the rollout counts the
+receivers capped and the edges dropped over its steps (``timing``: ``capped`` and ``dropped``).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -23,10 +30,12 @@ from scipy.spatial import cKDTree
 from generators import h5md
 from surrogate import devices, samples
 from surrogate.correction import correct_overlaps
-from surrogate.graph import radius_graph
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated
+from surrogate.simulator import Graph, LearnedSimulator, build_graph, neighbour_edges, prune_isolated
+
+if TYPE_CHECKING:
+    from surrogate.ensemble import Ensemble
 
 
 @dataclass
@@ -38,6 +47,8 @@ class Rollout:
     seconds_graph: float = 0.0           # of which building the radius graph
     timing: dict = field(default_factory=dict)
     seconds_network: float = 0.0         # of which the network's forward pass (on a GPU: the time to queue it)
+    models: int = 1                      # models whose mean acceleration was integrated (an ensemble: several)
+    max_neighbours: int | None = None    # the model's neighbour cap (null: none)
 
     @property
     def n_predicted(self) -> int:
@@ -64,12 +75,11 @@ def prepare_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, ki
     its nodes, edges, decoded and sleeping particles added."""
     t0 = time.perf_counter()
     if not (runtime.prune_isolated or runtime.sleep_speed is not None):
-        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props, runtime.skip_kinematic_pairs)
+        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props, runtime.skip_kinematic_pairs,
+                            simulator.max_neighbours)
         seconds = time.perf_counter() - t0
         n = graph.types.numel()
-        counts["nodes"] += n
-        counts["edges"] += graph.edge_index.shape[1]
-        counts["decoded"] += n
+        count_graph(counts, graph, n)
         return Step(graph, None, torch.arange(n, device=window.device), kinematic_next, seconds)
     last = window[-1]
     kinematic = sim.kinematic
@@ -85,19 +95,27 @@ def prepare_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, ki
             resting[resting.clone()] = ~woken
         static = kinematic | resting
         counts["asleep"] += int(resting.sum())
-    edges = radius_graph(last, simulator.radius, static.cpu().numpy()).to(last.device)
-    graph = Graph(window, sim.types, static, edges, props)
+    edges = neighbour_edges(last, simulator.radius, static.cpu().numpy(), simulator.max_neighbours)
+    graph = Graph(window, sim.types, static, edges.edge_index, props, edges.capped_receivers, edges.dropped_edges)
     if runtime.prune_isolated:
         graph, index = prune_isolated(graph)
     else:
         index = torch.arange(len(static), device=static.device)
     seconds = time.perf_counter() - t0
     moving = (~graph.kinematic).nonzero().squeeze(1)       # only these are decoded and integrated
-    counts["nodes"] += len(index)
-    counts["edges"] += graph.edge_index.shape[1]
-    counts["decoded"] += len(moving)
+    count_graph(counts, graph, len(moving), len(index))
     rest = torch.where(kinematic.unsqueeze(-1), kinematic_next, last)      # asleep: stays where it is
     return Step(graph, moving, index, rest, seconds)
+
+
+def count_graph(counts: dict, graph: Graph, decoded: int, nodes: int | None = None) -> None:
+    """Add one step's graph to a rollout's ``counts``: its nodes (default: the graph's), edges, decoded
+    nodes, and the receivers the neighbour cap capped and the edges it dropped."""
+    counts["nodes"] += graph.types.numel() if nodes is None else nodes
+    counts["edges"] += graph.edge_index.shape[1]
+    counts["decoded"] += decoded
+    counts["capped"] += graph.capped_receivers
+    counts["dropped"] += graph.dropped_edges
 
 
 def finish_step(simulator: LearnedSimulator, step: Step, acceleration: torch.Tensor) -> torch.Tensor:
@@ -151,8 +169,9 @@ def keep_in_domain(position: torch.Tensor, moving: torch.Tensor, lower: torch.Te
 
 
 @torch.inference_mode()
-def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, runtime: Runtime | None = None,
-            start: torch.Tensor | None = None, forced: bool = False, given: int | None = None) -> Rollout:
+def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | None = None,
+            runtime: Runtime | None = None, start: torch.Tensor | None = None, forced: bool = False,
+            given: int | None = None) -> Rollout:
     """Predict frames ``G .. n_frames-1`` (default: as many frames as the sim has) from the first G.
 
     G is ``given``, by default the model's history K; a protocol may give more frames than the model
@@ -191,11 +210,10 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
         kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
         if runtime is None:
             t0 = time.perf_counter()
-            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props)
+            graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props,
+                                max_neighbours=simulator.max_neighbours)
             t_graph += time.perf_counter() - t0
-            counts["nodes"] += graph.types.numel()
-            counts["edges"] += graph.edge_index.shape[1]
-            counts["decoded"] += graph.types.numel()
+            count_graph(counts, graph, graph.types.numel())
             t0 = time.perf_counter()
             nxt = simulator.step(graph, kinematic_next)
             t_network += time.perf_counter() - t0           # the step's pruning and integration included
@@ -214,21 +232,25 @@ def rollout(simulator: LearnedSimulator, sim: Sim, n_frames: int | None = None, 
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
-    return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, step_timing(counts, steps), t_network)
+    return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, step_timing(counts, steps), t_network,
+                   simulator.n_models, simulator.max_neighbours)
 
 
 def new_counts() -> dict:
     """Zeroed per-rollout counters: sleeping particles, graph nodes, edges and decoded nodes summed over the
-    steps, particles put back into the box, and particle pairs pushed apart by the contact correction."""
-    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0, "corrected": 0}
+    steps, particles put back into the box, particle pairs pushed apart by the contact correction, and the
+    receivers the neighbour cap capped and the edges it dropped."""
+    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0, "corrected": 0, "capped": 0,
+            "dropped": 0}
 
 
 def step_timing(counts: dict, steps: int) -> dict:
-    """A rollout's ``timing``: every count per computed step, the particle-steps put back into the box
-    and the pair-steps pushed apart by the contact correction."""
+    """A rollout's ``timing``: every count per computed step, and the totals of the particle-steps put back
+    into the box, the pair-steps pushed apart by the contact correction, the receiver-steps capped and the
+    edges dropped by the neighbour cap."""
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
-    timing["clamped"] = counts["clamped"]
-    timing["corrected"] = counts["corrected"]
+    for name in ("clamped", "corrected", "capped", "dropped"):
+        timing[name] = counts[name]
     return timing
 
 
@@ -239,13 +261,24 @@ def rollout_mse(predicted: np.ndarray, truth: np.ndarray, moving: np.ndarray, hi
 
 
 def write(path, sim: Sim, result: Rollout, checkpoint_path, checkpoint_sha: str):
-    """The predicted trajectory as H5MD, same layout as the sim, with the rollout's provenance."""
+    """The predicted trajectory as H5MD, same layout as the sim, with the rollout's provenance.
+
+    ``checkpoint_path`` is one path, or the list of an ensemble's (recorded separated by spaces, with
+    ``rollout_models``); a rollout with a neighbour cap records it and its counts
+    (``rollout_max_neighbours``, ``rollout_capped_receivers``, ``rollout_dropped_edges``)."""
     params = dict(sim.traj.parameters)
-    params.update(source_sim=str(sim.path), rollout_checkpoint=str(checkpoint_path),
+    paths = [checkpoint_path] if isinstance(checkpoint_path, str | Path) else list(checkpoint_path)
+    params.update(source_sim=str(sim.path), rollout_checkpoint=" ".join(str(p) for p in paths),
                   rollout_checkpoint_sha=checkpoint_sha, rollout_history=result.history,
                   rollout_first_nonfinite=-1 if result.first_nonfinite is None else result.first_nonfinite,
                   rollout_wall_time=result.seconds, rollout_graph_time=result.seconds_graph,
                   rollout_seconds_per_frame=result.seconds / max(result.n_predicted, 1),
                   content="Graph-DEM rollout: frames < rollout_history are the data's, later frames predicted")
+    if result.models > 1:
+        params.update(rollout_models=result.models)
+    if result.max_neighbours is not None:
+        params.update(rollout_max_neighbours=result.max_neighbours,
+                      rollout_capped_receivers=int(result.timing.get("capped", 0)),
+                      rollout_dropped_edges=int(result.timing.get("dropped", 0)))
     traj = replace(sim.traj, position=result.position.astype(np.float32), parameters=params, observables={})
     return h5md.write(path, traj, allow_nonfinite=True)

@@ -9,6 +9,10 @@ physical units and advances positions with eq. (1):
 
 Kinematic particles are never predicted: :meth:`step` returns their next position unchanged from
 whatever the caller supplies (the data), and the graph has no kinematic-kinematic edges.
+
+With the model config's ``max_neighbours`` = N, every graph the simulator is given (training, validation,
+rollout) keeps each receiver's N nearest senders (:func:`surrogate.graph.cap_neighbours`); the graph
+records the receivers capped and the edges dropped.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from surrogate.graph import radius_graph
+from surrogate.graph import CappedEdges, cap_neighbours, radius_graph
 from surrogate.model.constructor import boundary_features
 from surrogate.model.graphdem import GraphDEM
+from surrogate.neighbours import check_cap
 
 
 @dataclass
@@ -33,15 +38,30 @@ class Graph:
     kinematic: torch.Tensor     # [N] bool
     edge_index: torch.Tensor    # [2, E]
     props: torch.Tensor | None  # [N, F] normalised properties, None for a scene without any
+    capped_receivers: int = 0   # receivers that had more senders than the neighbour cap (0 without a cap)
+    dropped_edges: int = 0      # edges the neighbour cap dropped
+
+
+def neighbour_edges(position: torch.Tensor, radius: float, kinematic: torch.Tensor | np.ndarray | None,
+                    max_neighbours: int | None = None) -> CappedEdges:
+    """The radius graph of one frame ``position`` [N, D] on its device (no edge between two ``kinematic``
+    particles when given), cut to ``max_neighbours`` senders per receiver when set (null: the radius
+    graph as it is, nothing counted)."""
+    edges = radius_graph(position, radius, kinematic).to(position.device)
+    if max_neighbours is None:
+        return CappedEdges(edges, 0, 0)
+    return cap_neighbours(edges, position, max_neighbours)
 
 
 def build_graph(window: torch.Tensor, types: torch.Tensor, kinematic: torch.Tensor, radius: float,
-                props: torch.Tensor | None = None, skip_kinematic_pairs: bool = True) -> Graph:
+                props: torch.Tensor | None = None, skip_kinematic_pairs: bool = True,
+                max_neighbours: int | None = None) -> Graph:
     """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2); no edge
-    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch). The edges
-    live on the window's device, wherever the neighbour search ran."""
-    edges = radius_graph(window[-1], radius, kinematic if skip_kinematic_pairs else None)
-    return Graph(window, types, kinematic, edges.to(window.device), props)
+    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch); each
+    receiver's ``max_neighbours`` nearest senders where that cap is set. The edges live on the window's
+    device, wherever the neighbour search ran."""
+    edges = neighbour_edges(window[-1], radius, kinematic if skip_kinematic_pairs else None, max_neighbours)
+    return Graph(window, types, kinematic, edges.edge_index, props, edges.capped_receivers, edges.dropped_edges)
 
 
 def prune_isolated(graph: Graph) -> tuple[Graph, torch.Tensor]:
@@ -63,7 +83,8 @@ def prune_isolated(graph: Graph) -> tuple[Graph, torch.Tensor]:
     sub_edges = remap[edges]
     sub_edges = sub_edges[:, (sub_edges >= 0).all(dim=0)]
     props = None if graph.props is None else graph.props[index]
-    return Graph(graph.window[:, index], graph.types[index], graph.kinematic[index], sub_edges, props), index
+    return Graph(graph.window[:, index], graph.types[index], graph.kinematic[index], sub_edges, props,
+                 graph.capped_receivers, graph.dropped_edges), index
 
 
 def stack_graphs(graphs: list[Graph]) -> Graph:
@@ -78,6 +99,8 @@ def stack_graphs(graphs: list[Graph]) -> Graph:
         kinematic=torch.cat([g.kinematic for g in graphs]),
         edge_index=torch.cat([g.edge_index + int(o) for g, o in zip(graphs, offsets, strict=True)], dim=1),
         props=None if props[0] is None else torch.cat(props),
+        capped_receivers=sum(g.capped_receivers for g in graphs),
+        dropped_edges=sum(g.dropped_edges for g in graphs),
     )
 
 
@@ -91,6 +114,8 @@ class LearnedSimulator(nn.Module):
         self.dim = int(stats["dim"])
         self.history = int(model_cfg["history"])
         self.radius = float(stats["connectivity_radius"])
+        # senders kept per receiver (null: every one within R); absent in checkpoints from before the key
+        self.max_neighbours = check_cap(model_cfg.get("max_neighbours"))
         self.property_names = list(model_cfg.get("properties") or [])
         self.model = GraphDEM(
             dim=self.dim, history=self.history, n_types=int(stats["n_types"]),
@@ -122,19 +147,38 @@ class LearnedSimulator(nn.Module):
         acc = next_position - 2 * window[-1] + window[-2]
         return (acc - self.acceleration_mean) / self.acceleration_std
 
+    @property
+    def n_models(self) -> int:
+        """Models whose accelerations a step averages: one (an :class:`surrogate.ensemble.Ensemble` has several)."""
+        return 1
+
+    def denormalise(self, acceleration: torch.Tensor) -> torch.Tensor:
+        """The physical acceleration (m per frame^2) of a normalised one."""
+        return acceleration * self.acceleration_std + self.acceleration_mean
+
     def integrate(self, window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
         """Next positions from a normalised acceleration (eq. 1)."""
-        acc = acceleration * self.acceleration_std + self.acceleration_mean
-        return window[-1] + (window[-1] - window[-2]) + acc
+        return advance(window, self.denormalise(acceleration))
 
     def step(self, graph: Graph, kinematic_next: torch.Tensor) -> torch.Tensor:
         """Positions of the next frame: predicted for moving particles, ``kinematic_next`` for the rest.
 
         Isolated unpredicted particles are left out of the computation (:func:`prune_isolated`,
         exact) and only the moving particles are decoded."""
-        reduced, index = prune_isolated(graph)
-        moving = (~reduced.kinematic).nonzero().squeeze(1)
-        predicted = self.integrate(reduced.window[:, moving], self(reduced, decode=moving))
-        nxt = kinematic_next.clone()
-        nxt[index[moving]] = predicted.to(nxt.dtype)
-        return nxt
+        return next_frame(self, graph, kinematic_next)
+
+
+def advance(window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
+    """Next positions from a window and a physical acceleration (eq. 1): p + (p - p_prev) + a."""
+    return window[-1] + (window[-1] - window[-2]) + acceleration
+
+
+def next_frame(model: nn.Module, graph: Graph, kinematic_next: torch.Tensor) -> torch.Tensor:
+    """:meth:`LearnedSimulator.step` of ``model``, a simulator or an ensemble: its ``integrate`` applied to its
+    prediction for the moving particles of the pruned graph; ``kinematic_next`` for the rest."""
+    reduced, index = prune_isolated(graph)
+    moving = (~reduced.kinematic).nonzero().squeeze(1)
+    predicted = model.integrate(reduced.window[:, moving], model(reduced, decode=moving))
+    nxt = kinematic_next.clone()
+    nxt[index[moving]] = predicted.to(nxt.dtype)
+    return nxt

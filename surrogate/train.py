@@ -5,7 +5,9 @@ Files in the output folder:
 
 * ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats
   (with ``ema_decay`` set, the exponential moving average of the weights is what is validated and kept);
-* ``history.csv``: per epoch the mean training loss and the validation rollout MSE;
+* ``history.csv``: per epoch the mean training loss and the validation rollout MSE (with the model's
+  neighbour cap ``max_neighbours``, also the receivers it capped and the edges it dropped in the epoch's
+  training graphs, and their edges before the cap);
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
   best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
   A run that finds an unfinished ``last.pt`` with the same model, data and training settings
@@ -30,6 +32,7 @@ from tqdm import tqdm
 from generators.atomic import atomic_path
 from surrogate import checkpoint, derived, devices, distributed
 from surrogate.errors import TrainingDiverged
+from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim, load_sim, sample_index
@@ -39,6 +42,24 @@ log = logging.getLogger("graphdem.train")
 
 # Settings that may change between an interrupted run and its continuation.
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
+# history.csv's columns, and those a neighbour cap adds (sums over the epoch's training graphs)
+HISTORY = ["epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr"]
+CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
+
+
+def log_cap(cap: int, stats: dict) -> None:
+    """Log the neighbour cap and the share of the train split's receivers and edges it cuts, from the neighbour
+    histogram of ``stats.json`` (:mod:`surrogate.neighbours`), or that the stats predate it."""
+    counted = stats.get("neighbour_counts")
+    if not counted:
+        log.info("model.max_neighbours = %d; this stats.json has no neighbour counts (written before they were "
+                 "recorded): rerun `graphdem dataset` to see what the cap cuts", cap)
+        return
+    histogram = Histogram.from_list(counted["histogram"])
+    log.info("model.max_neighbours = %d: on the train split at R = %g, %.3g %% of the receivers have more senders "
+             "(at most %d, 99th percentile %d) and %.3g %% of the edges are dropped", cap,
+             stats["connectivity_radius"], 100 * histogram.capped_fraction(cap), histogram.largest,
+             histogram.percentile(PERCENTILE), 100 * histogram.dropped_fraction(cap))
 
 
 def _generator(*seeds: int) -> torch.Generator:
@@ -85,8 +106,8 @@ class _Sample:
     kinematic: torch.Tensor
     props: torch.Tensor | None
 
-    def graph(self, window: torch.Tensor, radius: float):
-        return build_graph(window, self.types, self.kinematic, radius, self.props)
+    def graph(self, window: torch.Tensor, radius: float, max_neighbours: int | None = None):
+        return build_graph(window, self.types, self.kinematic, radius, self.props, max_neighbours=max_neighbours)
 
 
 def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
@@ -128,7 +149,8 @@ def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, 
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
                generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0,
                pushforward_steps: int = 1, *, world: distributed.World | None = None,
-               model: torch.nn.Module | None = None, precision: str = "float32") -> torch.Tensor:
+               model: torch.nn.Module | None = None, precision: str = "float32",
+               counts: dict | None = None) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
     With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
@@ -147,6 +169,11 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     process takes part in the gradient's exchange. ``model`` computes the prediction that carries the
     gradient (the DDP wrapper; default ``simulator``); ``precision`` = ``bfloat16`` runs the forward
     passes under bfloat16 autocast (:func:`surrogate.devices.autocast`).
+
+    Every graph keeps each receiver's ``simulator.max_neighbours`` nearest senders where that cap is set;
+    ``counts`` (a dict with ``capped``, ``dropped`` and ``edges``), when given, gets the receivers capped,
+    the edges dropped and the edges before the cap of the graphs the loss is computed on (this process's
+    share) added.
     """
     world = world or distributed.World()
     model = model or simulator
@@ -156,19 +183,25 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
         keep, weight = range(1), 0.0
     drawn = _draws(simulator, sims, batch, noise_std, generator, mirror, pushforward, pushforward_steps, keep)
     windows = [sample.window for sample in drawn]
+    radius, cap = simulator.radius, simulator.max_neighbours
     with devices.autocast(simulator.lower.device, precision):
         for j in range(max(len(sample.truth) for sample in drawn)):
             which = [i for i, sample in enumerate(drawn) if len(sample.truth) > j]
-            earlier = stack_graphs([drawn[i].graph(windows[i], simulator.radius) for i in which])
+            earlier = stack_graphs([drawn[i].graph(windows[i], radius, cap) for i in which])
             with torch.no_grad():
                 predicted = simulator.step(earlier, torch.cat([drawn[i].truth[j] for i in which]))
             sizes = [windows[i].shape[1] for i in which]
             for i, frame in zip(which, predicted.split(sizes), strict=True):
                 windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
-        graphs = [sample.graph(window, simulator.radius) for window, sample in zip(windows, drawn, strict=True)]
+        graphs = [sample.graph(window, radius, cap) for window, sample in zip(windows, drawn, strict=True)]
         targets = [simulator.target(window, sample.following) for window, sample in zip(windows, drawn, strict=True)]
+        stacked = stack_graphs(graphs)
+        if counts is not None and weight > 0:          # a weight-0 stand-in sample is not training data
+            counts["capped"] += stacked.capped_receivers
+            counts["dropped"] += stacked.dropped_edges
+            counts["edges"] += stacked.edge_index.shape[1] + stacked.dropped_edges
         # isolated wall particles cannot change a prediction: left out (exact), and only moving particles decoded
-        graph, index = prune_isolated(stack_graphs(graphs))
+        graph, index = prune_isolated(stacked)
         moving = (~graph.kinematic).nonzero().squeeze(1)
         prediction = model(graph, decode=moving)
     squared = (prediction.float() - torch.cat(targets)[index[moving]]) ** 2
@@ -258,6 +291,10 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
              "best_step": 0, "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0,
              # the learning-rate schedule is fixed when a run starts, so a resumed run follows it exactly
              "total_steps": int(train_cfg["epochs"]) * n_batches}
+    cap = simulator.max_neighbours
+    if cap is not None:
+        log_cap(cap, stats)
+        state.update(capped_sum=0, dropped_sum=0, edges_sum=0)       # the epoch's training graphs so far
     best_weights = None
     decay = train_cfg.get("ema_decay")
     average = {k: v.detach().clone() for k, v in simulator.state_dict().items()} if decay is not None else None
@@ -298,8 +335,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         checkpoint.save(last, payload)
 
     def save_outputs() -> None:
-        history = pd.DataFrame(state["history"], columns=[
-            "epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr"])
+        history = pd.DataFrame(state["history"], columns=HISTORY + (CAP_HISTORY if cap is not None else []))
         with atomic_path(out_dir / "history.csv") as tmp:
             history.to_csv(tmp, index=False)
         if best_weights is not None:
@@ -319,12 +355,18 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                    disable=not progress, mininterval=2.0)
         for b in bar:
             batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
+            counts = {"capped": 0, "dropped": 0, "edges": 0} if cap is not None else None
             loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
                               _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
                               pushforward=float(train_cfg["pushforward"]),
                               pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
-                              precision=precision)
+                              precision=precision, counts=counts)
             value = distributed.mean(loss, world)          # the batch's loss, the same on every process
+            if counts is not None:                         # summed over the processes' shares of the batch
+                summed = distributed.total(torch.tensor([counts["capped"], counts["dropped"], counts["edges"]],
+                                                        dtype=torch.int64, device=device), world)
+                for key, number in zip(("capped_sum", "dropped_sum", "edges_sum"), summed.tolist(), strict=True):
+                    state[key] += int(number)
             if not math.isfinite(value):
                 samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
                 raise TrainingDiverged(
@@ -391,9 +433,16 @@ def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, v
     else:
         state["bad_epochs"] += 1
     state["seconds"] += time.perf_counter() - clock
-    state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr])
+    row = [epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr]
     log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
              " (best)" if improved else "")
+    if "capped_sum" in state:                      # a neighbour cap: what it cut from the epoch's training graphs
+        capped, dropped, edges = state["capped_sum"], state["dropped_sum"], state["edges_sum"]
+        row += [capped, dropped, edges]
+        log.info("epoch %d: the neighbour cap capped %d receivers and dropped %d of %d edges (%.3g %%) of the "
+                 "training graphs", epoch + 1, capped, dropped, edges, 100 * dropped / max(edges, 1))
+        state.update(capped_sum=0, dropped_sum=0, edges_sum=0)
+    state["history"].append(row)
     state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)
     if state["bad_epochs"] >= patience:
         log.info("early stopping: no improvement for %d epochs", patience)

@@ -197,8 +197,11 @@ def test_ids(scene: str) -> list[str]:
 
 
 def model_config_json(wildcards) -> str:
-    """The model config (a benchmark's one model is scored under every protocol K >= its history)."""
-    return _json(_section(wildcards)["model"])
+    """The model config (a benchmark's one model is scored under every protocol K >= its history). A null
+    `max_neighbours` (no cap: the graph as before the key existed) is left out, so that the train jobs of
+    models trained before it are not rerun for a changed parameter; the simulator reads a missing cap as none."""
+    model = _section(wildcards)["model"]
+    return _json({k: v for k, v in model.items() if not (k == "max_neighbours" and v is None)})
 
 
 def train_config_json(wildcards) -> str:
