@@ -5,7 +5,10 @@ Files in the output folder:
 
 * ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats
   (with ``ema_decay`` set, the exponential moving average of the weights is what is validated and kept);
-* ``history.csv``: per epoch the mean training loss and the validation rollout MSE;
+* ``history.csv``: per epoch the mean training loss and the validation rollout MSE, the training wall time
+  so far (``seconds``: training and validation, summed over the runs of a resumed job) and where the epoch
+  ran: ``threads`` (torch CPU threads per process), ``processes`` (1, or torchrun's), ``device`` (cpu or
+  cuda:N) and ``device_name`` (the GPU's or the CPU's model; :func:`surrogate.devices.name`);
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
   best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
   A run that finds an unfinished ``last.pt`` with the same model, data and training settings
@@ -37,6 +40,9 @@ from surrogate.simulator import LearnedSimulator, build_graph, prune_isolated, s
 
 log = logging.getLogger("graphdem.train")
 
+# history.csv: per epoch its record, then where it ran (a benchmark card's training cost needs both)
+HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr",
+                   "threads", "processes", "device", "device_name")
 # Settings that may change between an interrupted run and its continuation.
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
 
@@ -285,6 +291,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
     model = distributed.wrap(simulator, world, device)     # after resuming: DDP starts from rank 0's weights
+    # where each epoch ran (history.csv): a resumed run may continue on other hardware
+    hardware = [torch.get_num_threads(), world.size, str(device), devices.name(device)]
 
     def meta() -> dict:
         return {"model": model_cfg, "train": train_cfg, "stats": stats, "settings": settings, "state": state}
@@ -298,8 +306,9 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         checkpoint.save(last, payload)
 
     def save_outputs() -> None:
-        history = pd.DataFrame(state["history"], columns=[
-            "epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr"])
+        # a run resumed from a last.pt written before the hardware columns has shorter rows: blank there
+        history = pd.DataFrame([row + [None] * (len(HISTORY_COLUMNS) - len(row)) for row in state["history"]],
+                               columns=list(HISTORY_COLUMNS))
         with atomic_path(out_dir / "history.csv") as tmp:
             history.to_csv(tmp, index=False)
         if best_weights is not None:
@@ -359,7 +368,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         bar.close()
         if world.main:
             best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
-                                      optimiser.param_groups[0]["lr"], clock) or best_weights
+                                      optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
             save_outputs()      # outputs first: a kill in between never leaves a finished state without them
             save_last()
         state = distributed.from_main(state, world)    # the others wait here for rank 0's validation
@@ -373,9 +382,10 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
 
 
 def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, valid_sims: list[Sim], patience: int,
-               epochs: int, lr: float, clock: float) -> dict[str, torch.Tensor] | None:
-    """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` and close
-    it; the weights to keep as the best, on the CPU, where they improved, else None."""
+               epochs: int, lr: float, clock: float, hardware: list) -> dict[str, torch.Tensor] | None:
+    """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` (with the
+    ``hardware`` it ran on: threads, processes, device, device name) and close it; the weights to keep as the best,
+    on the CPU, where they improved, else None."""
     epoch = state["epoch"]
     train_loss = state["loss_sum"] / max(state["loss_count"], 1)
     if average is not None:
@@ -391,7 +401,8 @@ def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, v
     else:
         state["bad_epochs"] += 1
     state["seconds"] += time.perf_counter() - clock
-    state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr])
+    state["history"].append([epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr,
+                             *hardware])
     log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
              " (best)" if improved else "")
     state.update(epoch=epoch + 1, batch=0, loss_sum=0.0, loss_count=0)
