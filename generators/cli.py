@@ -323,7 +323,7 @@ def add_commands(sub) -> None:
 
 
 #: the argparse destinations a subcommand writes (files, or folders it writes files into); every other path is read
-OUTPUTS = ("out", "out_dir", "per_step", "plot", "plots", "dest")
+OUTPUTS = ("out", "out_dir", "per_step", "plot", "plots", "dest", "markdown")
 DIRECTORY_OUTPUTS = ("out_dir", "plots", "dest")
 
 

@@ -2,7 +2,8 @@
 
 The generators' stages (config, sweep, prepare, simulate, convert, inspect, import-solidgn,
 stability-dem) come from generators/cli.py; this module adds the surrogate's (dataset, train, rollout,
-evaluate, combine, stability-surrogate and the performance stage's subcommands) and runs them all.
+evaluate, combine, seeds, card, stability-surrogate and the performance stage's subcommands) and runs
+them all.
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the
 file, sim, frame or config key) when something is wrong.
 """
@@ -207,6 +208,42 @@ def cmd_seeds(args) -> None:
     for row in shown.itertuples():
         print(f"{row.method:>18}  {row.metric:<14} {row.column:<11} {row.mean:.4g} +- {row.std:.2g} "
               f"({row.min:.4g} .. {row.max:.4g}, {row.n_seeds} seeds)")
+
+def cmd_card(args) -> None:
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    from surrogate import card, devices
+    counts = {"--metrics": len(args.metrics), "--steps": len(args.steps), "--histories": len(args.histories)}
+    if set(counts.values()) != {len(args.seeds)}:
+        raise SystemExit(f"graphdem card: give one file per seed ({len(args.seeds)} seeds: {args.seeds}); got "
+                         + ", ".join(f"{n} {flag}" for flag, n in counts.items()))
+    if len(set(args.seeds)) != len(args.seeds):
+        raise SystemExit(f"graphdem card: --seeds {args.seeds} repeat a seed")
+    def fallback() -> card.Hardware | None:
+        """Where a model whose history.csv does not say trained: --train-threads on --device, here resolved."""
+        if args.train_threads is None:
+            return None
+        where = devices.resolve(args.device)
+        return card.Hardware(str(where), devices.name(where), int(args.train_threads), 1)
+
+    tables, trainings = {}, {}
+    for seed, metrics, steps, history in zip(args.seeds, args.metrics, args.steps, args.histories, strict=True):
+        epochs = pd.read_csv(history)
+        try:
+            trainings[seed] = card.training(epochs, None if card.records_hardware(epochs) else fallback())
+        except ValueError as exc:
+            raise ValueError(f"{history}: {exc}") from None
+        tables[seed] = (pd.read_csv(metrics), pd.read_csv(steps), trainings[seed])
+    stats = json.loads(Path(args.stats).read_text())
+    table, split, note = card.card(tables, stats, args.article_json, args.benchmark)
+    text = card.markdown(table, args.benchmark, split, note, card.mean_diameter(stats), trainings, args.device)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False, na_rep="NaN")
+    with atomic_path(args.markdown) as tmp:
+        tmp.write_text(text)
+    print(text)
+
 
 def cmd_stability_surrogate(args) -> None:
     import torch
@@ -441,6 +478,52 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, nargs="+", required=True, help="the seed of each table, in the same order")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=cmd_seeds)
+
+    from surrogate import devices
+    p = sub.add_parser(
+        "card", help="a public benchmark's card: Graph-DEM and constant velocity over seeds, beside the article",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="The benchmark card of a public benchmark (docs/benchmarks.md, Benchmark card). From the\n"
+                    "evaluation of each model trained with a different seed: per method, protocol K and quantity\n"
+                    "the mean, sample standard deviation (ddof 1), smallest and largest value over the seeds and\n"
+                    "each seed's value (--out, CSV), and a short table to read (--markdown) that also states the\n"
+                    "split scored, the hardware and the article's figures beside ours.\n\n"
+                    "quantities (per seed first, then over the seeds; NaN is never skipped):\n"
+                    "  rollout_mse           rollout MSE (m^2) of metrics.csv\n"
+                    "  mse_first_frame       MSE (m^2) at the first predicted frame, mean over sims (--steps)\n"
+                    "  mse_last_frame        MSE (m^2) at the last predicted frame, mean over sims (--steps)\n"
+                    "  rmse_diameters        sqrt(rollout MSE) / d, d = the moving particles' mean diameter\n"
+                    "                        (2 x the mean radius of --stats, the train split's moving particles)\n"
+                    "  blown_up              rollouts that blew up (n_blown_up); total: over all seeds\n"
+                    "  rollout_ms_per_frame  Graph-DEM's rollout wall time per predicted frame (ms)\n"
+                    "  train_seconds         training wall time per model (history.csv's seconds)\n"
+                    "  train_cost            each epoch's seconds x its threads x processes (CPU: core-hours)\n"
+                    "                        or x its processes (GPU: GPU-hours), summed, per model",
+        epilog="The workflow makes it (B: slide_samer or slide_small; the seeds: the config key seeds):\n"
+               "  snakemake -c2 results/<B>/card.md --config solidgn_root=/path/to/solidgn")
+    p.add_argument("--benchmark", choices=sorted(gcli.gconfig.BENCHMARKS), required=True,
+                   help="the public benchmark (its name in the card)")
+    p.add_argument("--seeds", type=int, nargs="+", required=True, help="the training seeds, one per model")
+    p.add_argument("--metrics", type=Path, nargs="+", required=True,
+                   help="each seed's metrics.csv (graphdem evaluate --out), in --seeds order")
+    p.add_argument("--steps", type=Path, nargs="+", required=True,
+                   help="each seed's per-step table (graphdem evaluate --per-step), in --seeds order")
+    p.add_argument("--histories", type=Path, nargs="+", required=True,
+                   help="each seed's model/history.csv (graphdem train), in --seeds order")
+    p.add_argument("--stats", type=Path, required=True, help="the dataset's stats.json (the mean particle radius)")
+    p.add_argument("--article-json", type=_json, required=True,
+                   help='the article\'s figures, the config\'s B.article: {"history": K, "split": "test", '
+                        '"rollout_mse": {"graphdem": ..., "gns": ...}}')
+    p.add_argument("--device", type=_device_arg, default="auto",
+                   help=f"the device setting the jobs were given ({devices.CHOICES}); said on the card, and "
+                        "where a model trained with --train-threads")
+    p.add_argument("--train-threads", type=int,
+                   help="torch threads a model trained on (one process, on --device), for a history.csv that does "
+                        "not record where it ran (written before it had the threads and device columns); default: "
+                        "refuse such a file")
+    p.add_argument("--out", type=Path, required=True, help="card.csv to write")
+    p.add_argument("--markdown", type=Path, required=True, help="card.md to write")
+    p.set_defaults(func=cmd_card)
 
     p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
                        description="Stress test of the surrogate on H5MD sims: rollouts --lengths times the "

@@ -12,7 +12,10 @@ loading it.
 
 from __future__ import annotations
 
+import os
+import platform
 import re
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -52,6 +55,23 @@ def of(module: torch.nn.Module) -> torch.device:
     for tensor in (*module.parameters(), *module.buffers()):
         return tensor.device
     return torch.device("cpu")
+
+
+def name(device: torch.device, cpuinfo: Path = Path("/proc/cpuinfo")) -> str:
+    """What a device is, for the records that say where something ran (history.csv, the benchmark card): a
+    GPU's name (``torch.cuda.get_device_name``), or the CPU's model (``cpuinfo``'s first ``model name``, else
+    :func:`platform.processor`) with the machine's logical CPU count."""
+    import torch
+    device = torch.device(device)
+    if device.type == "cuda":
+        return torch.cuda.get_device_name(device)
+    model = ""
+    try:
+        model = next((line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
+                      if line.startswith("model name") and ":" in line), "")
+    except OSError:
+        pass
+    return f"{model or platform.processor() or platform.machine() or 'CPU'}, {os.cpu_count()} logical CPUs"
 
 
 def synchronize(device: torch.device) -> None:

@@ -356,10 +356,11 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
     with atomic_path(Path(out_csv)) as tmp:
         table.to_csv(tmp, index=False)
     if per_step_csv is not None:
-        extra = [c for c in steps.columns if c not in ("scene", "method", "sim", "metric", "tau", "frame", "time",
-                                                       "truth", "prediction", "blown_up")]
-        both = pd.concat([mean_per_step(steps).assign(**{c: steps[c].iloc[0] for c in extra}), steps],
-                         ignore_index=True)
+        mean = mean_per_step(steps)
+        # the provenance columns (the same in every row), not the keys of the mean: under several protocols the
+        # mean rows keep their own history
+        extra = [c for c in steps.columns if c not in ("truth", "prediction", "blown_up", *mean.columns)]
+        both = pd.concat([mean.assign(**{c: steps[c].iloc[0] for c in extra}), steps], ignore_index=True)
         with atomic_path(Path(per_step_csv)) as tmp:
             both.to_csv(tmp, index=False)
 

@@ -5,9 +5,12 @@ Files in the output folder:
 
 * ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats
   (with ``ema_decay`` set, the exponential moving average of the weights is what is validated and kept);
-* ``history.csv``: per epoch the mean training loss and the validation rollout MSE (with the model's
-  neighbour cap ``max_neighbours``, also the receivers it capped and the edges it dropped in the epoch's
-  training graphs, and their edges before the cap);
+* ``history.csv``: per epoch the mean training loss and the validation rollout MSE, the training wall time
+  so far (``seconds``: training and validation, summed over the runs of a resumed job) and where the epoch
+  ran: ``threads`` (torch CPU threads per process), ``processes`` (1, or torchrun's), ``device`` (cpu or
+  cuda:N) and ``device_name`` (the GPU's or the CPU's model; :func:`surrogate.devices.name`); with the
+  model's neighbour cap ``max_neighbours``, also the receivers it capped and the edges it dropped in the
+  epoch's training graphs, and their edges before the cap;
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
   best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
   A run that finds an unfinished ``last.pt`` with the same model, data and training settings
@@ -40,10 +43,12 @@ from surrogate.simulator import LearnedSimulator, build_graph, prune_isolated, s
 
 log = logging.getLogger("graphdem.train")
 
+# history.csv: per epoch its record, then where it ran (a benchmark card's training cost needs both)
+HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr",
+                   "threads", "processes", "device", "device_name")
 # Settings that may change between an interrupted run and its continuation.
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
-# history.csv's columns, and those a neighbour cap adds (sums over the epoch's training graphs)
-HISTORY = ["epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr"]
+# the columns a neighbour cap adds to history.csv (sums over the epoch's training graphs)
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
 
 
@@ -322,6 +327,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
     model = distributed.wrap(simulator, world, device)     # after resuming: DDP starts from rank 0's weights
+    # where each epoch ran (history.csv): a resumed run may continue on other hardware
+    hardware = [torch.get_num_threads(), world.size, str(device), devices.name(device)]
 
     def meta() -> dict:
         return {"model": model_cfg, "train": train_cfg, "stats": stats, "settings": settings, "state": state}
@@ -335,7 +342,11 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         checkpoint.save(last, payload)
 
     def save_outputs() -> None:
-        history = pd.DataFrame(state["history"], columns=HISTORY + (CAP_HISTORY if cap is not None else []))
+        # a run resumed from a last.pt written before the hardware columns has shorter rows: blank there (such a
+        # run has no neighbour cap: the cap is newer than the hardware columns)
+        columns = list(HISTORY_COLUMNS) + (CAP_HISTORY if cap is not None else [])
+        history = pd.DataFrame([row + [None] * (len(columns) - len(row)) for row in state["history"]],
+                               columns=columns)
         with atomic_path(out_dir / "history.csv") as tmp:
             history.to_csv(tmp, index=False)
         if best_weights is not None:
@@ -401,7 +412,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         bar.close()
         if world.main:
             best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
-                                      optimiser.param_groups[0]["lr"], clock) or best_weights
+                                      optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
             save_outputs()      # outputs first: a kill in between never leaves a finished state without them
             save_last()
         state = distributed.from_main(state, world)    # the others wait here for rank 0's validation
@@ -415,9 +426,10 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
 
 
 def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, valid_sims: list[Sim], patience: int,
-               epochs: int, lr: float, clock: float) -> dict[str, torch.Tensor] | None:
-    """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` and close
-    it; the weights to keep as the best, on the CPU, where they improved, else None."""
+               epochs: int, lr: float, clock: float, hardware: list) -> dict[str, torch.Tensor] | None:
+    """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` (with the
+    ``hardware`` it ran on: threads, processes, device, device name) and close it; the weights to keep as the best,
+    on the CPU, where they improved, else None."""
     epoch = state["epoch"]
     train_loss = state["loss_sum"] / max(state["loss_count"], 1)
     if average is not None:
@@ -433,7 +445,7 @@ def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, v
     else:
         state["bad_epochs"] += 1
     state["seconds"] += time.perf_counter() - clock
-    row = [epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr]
+    row = [epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr, *hardware]
     log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
              " (best)" if improved else "")
     if "capped_sum" in state:                      # a neighbour cap: what it cut from the epoch's training graphs

@@ -47,6 +47,8 @@ def test_a_rollout_folder_holding_the_sim_it_reads_is_refused(tmp_path, capsys):
      "--out", "a.csv"],
     ["import-solidgn", "data", "data"],
     ["physics", "--scene", "collapse", "--data", "a.h5", "--out", "out.csv", "--plot", "a.h5"],
+    ["card", "--benchmark", "slide_small", "--seeds", "0", "--metrics", "m.csv", "--steps", "s.csv", "--histories",
+     "h.csv", "--stats", "stats.json", "--article-json", "{}", "--out", "card.csv", "--markdown", "m.csv"],
 ])
 def test_every_subcommand_refuses_an_output_that_is_an_input(tmp_path, capsys, monkeypatch, argv):
     monkeypatch.chdir(tmp_path)

@@ -57,3 +57,13 @@ def test_bfloat16_autocast_follows_the_models_device_type():
         assert torch.nn.functional.linear(torch.ones(2, 3), torch.ones(4, 3)).dtype == torch.bfloat16
     assert devices.of(torch.nn.Linear(2, 2)) == torch.device("cpu")
     assert devices.of(torch.nn.Identity()) == torch.device("cpu")          # no tensor at all: the CPU
+
+
+def test_a_device_is_named_by_its_gpu_or_its_cpu_model(monkeypatch, tmp_path):
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nmodel name\t: Some CPU @ 2.0GHz\n\nprocessor\t: 1\nmodel name\t: Some CPU\n")
+    monkeypatch.setattr(devices.os, "cpu_count", lambda: 2)
+    assert devices.name(torch.device("cpu"), cpuinfo) == "Some CPU @ 2.0GHz, 2 logical CPUs"
+    assert devices.name("cpu", tmp_path / "none").endswith(", 2 logical CPUs")      # no cpuinfo: platform's word
+    monkeypatch.setattr(torch.cuda, "get_device_name", lambda device: f"Some GPU {device.index}")
+    assert devices.name(torch.device("cuda", 1)) == "Some GPU 1"

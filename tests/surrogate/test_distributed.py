@@ -101,3 +101,4 @@ def test_the_resumed_two_process_run_ends_with_the_one_process_weights(runs):
     assert list(a["best"]) == list(b["best"])
     pd.testing.assert_series_equal(a["train_loss"], b["train_loss"], rtol=1e-5)
     pd.testing.assert_series_equal(a["valid_rollout_mse"], b["valid_rollout_mse"], rtol=1e-4)
+    assert set(a["processes"]) == {2} and set(b["processes"]) == {1}     # where it ran: a card's training cost

@@ -93,6 +93,18 @@ def test_a_rollout_that_blows_up_midway_counts_and_is_named():
     assert mean["prediction"].iloc[0] == pytest.approx(0.1) and mean["prediction"].iloc[1:].isna().all()
 
 
+def test_the_per_step_table_keeps_each_protocols_mean_rows_apart(tmp_path):
+    """Two protocols in one per-step table: the mean over sims of K = 6 is labelled K = 6, not the first K."""
+    from surrogate.evaluate import MSE, write
+    steps = pd.DataFrame([{"scene": "solidgn", "method": "graphdem", "sim": sim, "metric": MSE, "tau": tau,
+                           "frame": k + tau - 1, "time": 0.0, "truth": np.nan, "prediction": float(k * tau),
+                           "blown_up": False, "history": k, "split": "valid"}
+                          for k in (2, 6) for sim in ("a", "b") for tau in (1, 2)])
+    write(pd.DataFrame({"metric": [MSE]}), steps, tmp_path / "m.csv", tmp_path / "s.csv")
+    mean = pd.read_csv(tmp_path / "s.csv").query("sim == 'all'").set_index(["history", "tau"])["prediction"]
+    assert mean.to_dict() == {(2, 1): 2.0, (2, 2): 4.0, (6, 1): 6.0, (6, 2): 12.0}
+
+
 def test_evaluation_split_prefers_test_and_says_when_it_falls_back_to_valid():
     from surrogate.evaluate import evaluation_split
     both = pd.DataFrame({"id": ["a", "b", "c"], "split": ["train", "valid", "test"], "path": ["a", "b", "c"]})

@@ -103,7 +103,7 @@ def test_training_builds_the_capped_graph_and_records_what_it_cut(data, tmp_path
     model_cfg = {**synthetic.MODEL, "max_neighbours": CAP}
     train.train(data["stats_path"], data["splits"], model_cfg, synthetic.TRAIN, tmp_path / "capped", progress=False)
     history = pd.read_csv(tmp_path / "capped" / "history.csv")
-    assert list(history.columns) == train.HISTORY + train.CAP_HISTORY
+    assert list(history.columns) == list(train.HISTORY_COLUMNS) + train.CAP_HISTORY
     want = np.zeros(3, dtype=int)
     for name, split in data["split_of"].items():
         if split == "train":
@@ -114,7 +114,7 @@ def test_training_builds_the_capped_graph_and_records_what_it_cut(data, tmp_path
     assert meta["model"]["max_neighbours"] == CAP
     assert LearnedSimulator(meta["stats"], meta["model"]).max_neighbours == CAP
     train.train(data["stats_path"], data["splits"], synthetic.MODEL, synthetic.TRAIN, tmp_path / "free", progress=False)
-    assert list(pd.read_csv(tmp_path / "free" / "history.csv").columns) == train.HISTORY
+    assert list(pd.read_csv(tmp_path / "free" / "history.csv").columns) == list(train.HISTORY_COLUMNS)
 
 
 def test_the_evaluation_reports_the_caps_counts_per_frame(data, tmp_path, capsys):

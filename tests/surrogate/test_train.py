@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 import torch
 
-from surrogate import checkpoint, train
+from surrogate import checkpoint, devices, train
 from surrogate.samples import load_sim
 
 pytestmark = pytest.mark.engine
@@ -26,6 +26,10 @@ def test_tiny_training_lowers_the_loss_and_keeps_the_best_checkpoint(tiny_datase
     best = checkpoint.load(tmp_path / "best.pt")["json"]
     assert best["valid_rollout_mse"] == pytest.approx(history["valid_rollout_mse"].min())
     assert best["stats"] == tiny["stats"] and best["model"] == tiny["model"]   # carries what it was trained with
+    # where each epoch ran: what a benchmark card's training cost is computed from
+    assert (history["threads"] == 1).all() and (history["processes"] == 1).all()          # train's default
+    where = devices.resolve("auto")
+    assert set(history["device"]) == {str(where)} and set(history["device_name"]) == {devices.name(where)}
 
 
 def test_same_seed_reproduces_the_run(tiny_dataset, tmp_path):

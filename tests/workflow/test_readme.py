@@ -98,7 +98,8 @@ PROMISES = {
     "results/crosscheck/slide_transfer.csv --config scale=ci": {"builds": ({"slide", "crosscheck"}, "transfer")},
     "results/slide_samer/metrics.csv --config solidgn_root=/path/to/solidgn":
         {"builds": ({"slide_samer"}, "import_solidgn")},
-    "benchmarks --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer", "slide_small"}, "evaluate")},
+    "results/slide_samer/card.md --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer"}, "card")},
+    "benchmarks --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer", "slide_small"}, "card")},
 }
 
 

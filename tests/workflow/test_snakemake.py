@@ -327,9 +327,26 @@ def test_a_protocol_shorter_than_the_models_history_is_refused(tmp_path):
     assert not (tmp_path / "results").exists()
 
 
+@pytest.mark.parametrize("seeds", [1, 3])
+def test_the_benchmarks_target_plans_a_card_per_set_over_the_seeds(tmp_path, seeds):
+    """Each set's card reads every seed's evaluation: the main model and seeds - 1 more, per set."""
+    root = tmp_path / "solidgn"
+    for source in (config.load({"scale": "ci"})[b]["source"] for b in config.BENCHMARKS):
+        (root / source).mkdir(parents=True)
+        (root / source / "metadata.json").write_text('{"bounds": [[0, 100], [0, 80]], "dim": 2, "dt": 0.001}')
+    jobs = planned(snakemake(tmp_path / "work", "benchmarks", "-n", config=(f"solidgn_root={root}", f"seeds={seeds}")))
+    n = len(config.BENCHMARKS)
+    assert jobs["card"] == jobs["train"] == jobs["evaluate"] == jobs["import_solidgn"] == n
+    assert jobs.get("train_seed", 0) == jobs.get("evaluate_seed", 0) == n * (seeds - 1)
+    assert "seeds" not in jobs                       # the card reads the seeds' tables itself, not seeds.csv
+    proc = snakemake(tmp_path / "work", "results/slide/card.md", "-n", config=(f"solidgn_root={root}",))
+    assert proc.returncode != 0 and "No rule to produce results/slide/card.md" in proc.stdout + proc.stderr
+
+
 @pytest.mark.skipif(not SOLIDGN.is_dir(), reason="the Solid-GN data is not beside this checkout")
 def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
-    proc = snakemake(tmp_path, BENCH, "-c2", config=(f"solidgn_root={SOLIDGN}",))
+    proc = snakemake(tmp_path, BENCH, "results/slide_small/card.md", "-c2",
+                     config=(f"solidgn_root={SOLIDGN}", "seeds=2"))
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     import pandas as pd
     res = tmp_path / "results" / "slide_small"
@@ -350,6 +367,33 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert set(steps["history"]) == {2, 6}
     assert (res / "plots" / "rollout.gif").is_file() and (res / "plots" / "metrics_over_frames.png").is_file()
     assert (res / "benchmarks" / "evaluate.tsv").is_file()
+    # the benchmark card over seeds 0 and 1: both methods under both protocols, the article's figures from the config
+    steps = steps[steps["sim"] == "all"]
+    assert sorted(steps.groupby("history")["tau"].max().items()) == [(2, 18), (6, 14)]   # each K's own mean rows
+    assert set(pd.read_csv(res / "seeds" / "1" / "metrics_per_step.csv")["history"]) == {2, 6}
+    card = pd.read_csv(res / "card.csv")
+    ours = card[card["source"] == "measured"]
+    assert set(ours["n_seeds"]) == {2} and set(ours["split"].dropna()) == {"valid"}
+    per_k = ours.dropna(subset=["history"])
+    pairs = set(zip(per_k["method"], per_k["history"], strict=True))
+    assert pairs == {(m, k) for m in ("graphdem", "constant_velocity") for k in (2, 6)}
+    mse = per_k[(per_k["quantity"] == "rollout_mse")].set_index(["method", "history"])
+    main = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index(["method", "history"])["mse"]
+    assert mse.loc[("constant_velocity", 2), "mean"] == pytest.approx(main[("constant_velocity", 2)])
+    assert mse.loc[("graphdem", 2), "values"].startswith(f"0:{main[('graphdem', 2)]:.6g} ")   # seed 0: the main model
+    assert mse.loc[("graphdem", 2), "n_predicted"] == 18 and mse.loc[("graphdem", 6), "n_predicted"] == 14
+    radius = json.loads((res / "dataset" / "stats.json").read_text())["property_stats"]["radius"]["mean"]
+    rmse = per_k[per_k["quantity"] == "rmse_diameters"].set_index(["method", "history"])
+    assert rmse.loc[("graphdem", 2), "mean"] == pytest.approx(np.mean(
+        [float(v.split(":")[1]) ** 0.5 / (2 * radius) for v in mse.loc[("graphdem", 2), "values"].split()]), rel=1e-4)
+    cost = ours[ours["quantity"] == "train_cost"].iloc[0]
+    assert cost["unit"] in {"core-hours", "GPU-hours"} and cost["mean"] > 0 and cost["n_seeds"] == 2
+    article = card[card["source"] == "article"].set_index(["method", "quantity"])["mean"]
+    want = config.load({"scale": "ci"})["slide_small"]["article"]["rollout_mse"]
+    assert {m: article[(m, "rollout_mse")] for m in want} == want
+    text = (res / "card.md").read_text()
+    assert "**valid** split" in text and "Training hardware: " in text and "| Graph-DEM |" in text
+    assert (res / "logs" / "card.log").is_file() and (res / "benchmarks" / "card.tsv").is_file()
 
 
 @pytest.mark.parametrize("scene, dim, n_types, metrics", [

@@ -321,6 +321,35 @@ def seed_evaluation_args(wildcards) -> list[str]:
     return args
 
 
+def seed_per_step(wildcards) -> list[str]:
+    """Each seed's metrics_per_step.csv, in seed_metrics' order."""
+    first, *rest = _seeds(wildcards.name)
+    return [f"results/{wildcards.name}/metrics_per_step.csv",
+            *(f"results/{wildcards.name}/seeds/{s}/metrics_per_step.csv" for s in rest)]
+
+
+def seed_histories(wildcards) -> list[str]:
+    """Each seed's model/history.csv (its training time and where it ran), in seed_metrics' order."""
+    first, *rest = _seeds(wildcards.name)
+    return [f"results/{wildcards.name}/model/history.csv",
+            *(f"results/{wildcards.name}/seeds/{s}/model/history.csv" for s in rest)]
+
+
+# ---- benchmark card (results/<bench>/card.csv, card.md) -------------------------------------------
+
+
+def article_json(wildcards) -> str:
+    """The article's figures of a public benchmark (its `article` section), shown beside ours."""
+    return _json(CFG[wildcards.name]["article"])
+
+
+def card_machine_args(wildcards) -> list[str]:
+    """The device setting the jobs were given and the threads the train rule asks for (a benchmark's one): said
+    on the card, and assumed for a history.csv that does not record where its model trained. Machine settings,
+    recorded as one constant (changing them remakes no card)."""
+    return glaunch.MachineArgs([*glaunch.device_args(CFG), "--train-threads", str(train_threads(wildcards))])
+
+
 def ensemble_sims(wildcards) -> list[str]:
     """The DEM ensemble of a scene's test sims (none where evaluate.ensemble_perturbation is null, or for a
     public benchmark, whose engine runs are not ours to repeat)."""

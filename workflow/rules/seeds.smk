@@ -1,5 +1,6 @@
 # Stage seeds: the scene or benchmark trained with `seeds` seeds (train.seed, train.seed + 1, ...), each model
-# scored by the evaluate stage's evaluation, and every metric's mean and spread (results/<name>/seeds.csv;
+# scored by the evaluate stage's evaluation (metrics.csv and, per frame, metrics_per_step.csv), and every metric's
+# mean and spread (results/<name>/seeds.csv;
 # docs/surrogate.md, "Seeds"). The first seed is the main model (results/<name>/model); the others live in
 # results/<name>/seeds/<seed>/. Only built when asked for: `snakemake -c2 results/slide/seeds.csv`.
 rule train_seed:
@@ -35,7 +36,8 @@ rule evaluate_seed:
         splits="results/{name}/dataset/splits.csv",
         ensemble=ensemble_sims,
     output:
-        "results/{name}/seeds/{seed}/metrics.csv",
+        metrics="results/{name}/seeds/{seed}/metrics.csv",
+        per_step="results/{name}/seeds/{seed}/metrics_per_step.csv",
     params:
         evaluation=seed_evaluation_args,
         runtime=runtime_json,
@@ -50,8 +52,8 @@ rule evaluate_seed:
         "results/{name}/seeds/{seed}/benchmarks/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
-        "--runtime-json {params.runtime:q} --out {output:q} {params.metrics:q} {params.device:q} --no-progress "
-        "> {log} 2>&1"
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
+        "{params.metrics:q} {params.device:q} --no-progress > {log} 2>&1"
 
 
 rule seeds:
