@@ -1,13 +1,15 @@
 """The ci-scale outputs of the slide, meteorite and shear scenes are pinned (tests/workflow/fingerprint.py):
 the sweep tables and packing keys are identical, every sim's H5MD positions bit-identical, and metrics.csv
-identical (Graph-DEM's rows to a relative 1e-5), to those pinned when both engines were put on one
+identical (Graph-DEM's rows to a relative 1e-2, see MODEL_RELATIVE), to those pinned when both engines were put on one
 contact law (no tangential dashpot in LAMMPS; the shear's constant kn = E r_mean, dt_safety 0.02 and
 viscous settling). Before that they were pinned across the scene x engine redesign. metrics.csv was re-pinned
 when it gained the article-style Acc, the DEM ensemble and plausibility rows and the scenes took the derived
 training defaults: the sweeps, packings, positions and every constant-velocity value stayed as they were (the
 old acc_percent is the new acc_pooled_percent). The shear was re-pinned when it became a test under a normal
 load (a platen, the normal stress swept), and the slide's Graph-DEM rows when its contact correction was
-switched on; the slide's and the meteorite's data and constant-velocity rows stayed as they were."""
+switched on; the slide's and the meteorite's data and constant-velocity rows stayed as they were. The
+meteorite's Graph-DEM rows were re-pinned when its contact correction was switched on (data and constant
+velocity unchanged)."""
 
 import json
 import math
@@ -19,6 +21,11 @@ from tests.workflow.fingerprint import fingerprint
 
 PINNED = json.loads((Path(__file__).parent / "data" / "ci_outputs.json").read_text())
 MODEL = "graphdem"
+# Graph-DEM's rows come from a trained model, and training rounds differently on different CPU models (vector
+# instruction sets): the same code and data gave the slide's ci model a kinetic energy 0.19 % apart on two
+# machines (rollout MSE 1e-4 apart), while on one machine two runs agree to 1e-7. The data and constant
+# velocity stay exact.
+MODEL_RELATIVE = 1e-2
 
 pytestmark = pytest.mark.engine
 
@@ -40,6 +47,6 @@ def test_outputs_unchanged(ci_results, scene):
         if pinned["metric"] == "seconds per frame":          # a wall time: measured, never pinned
             assert row["metric"] == pinned["metric"] and row["mean_prediction"] > 0
             continue
-        relative = 1e-5 if pinned["method"] == MODEL else 0.0
+        relative = MODEL_RELATIVE if pinned["method"] == MODEL else 0.0
         different = {k: (row.get(k), v) for k, v in pinned.items() if not _same(row.get(k), v, relative)}
         assert not different, (pinned["method"], pinned["metric"], pinned["sim"], different)
