@@ -42,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from surrogate.evaluate import BASELINE, MODEL, MSE, SECONDS
+from surrogate.seeds import summary
 
 # quantity -> (unit, what the card's table calls it); train_cost's unit is the hardware's (core- or GPU-hours)
 QUANTITIES = {
@@ -233,12 +234,9 @@ def combine(values: dict[int, pd.DataFrame], benchmark: str, split: str) -> pd.D
         rows.append({"benchmark": benchmark, "source": MEASURED, "method": method, "history": k,
                      "n_predicted": group["n_predicted"].iloc[0],
                      "split": NOT_APPLICABLE if k == NOT_APPLICABLE else split, "quantity": quantity,
-                     "unit": units[0], "mean": float(series.mean(skipna=False)),
-                     "std": float(series.std(ddof=1, skipna=False)) if len(series) > 1 else math.nan,
-                     "min": float(series.min(skipna=False)), "max": float(series.max(skipna=False)),
+                     "unit": units[0], **summary(series),
                      "total": float(series.sum(skipna=False)) if quantity == "blown_up" else NOT_APPLICABLE,
-                     "n_seeds": len(series), "n_sims": sims[0],
-                     "values": " ".join(f"{s}:{v:.6g}" for s, v in series.items())})
+                     "n_sims": sims[0]})
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 

@@ -38,13 +38,19 @@ def spread(tables: dict[int, pd.DataFrame]) -> pd.DataFrame:
             values = group.set_index("seed")[column].astype(float)
             if column == "mean_prediction" and group["mse"].notna().any():
                 continue                           # the rollout MSE's mean_prediction repeats its mse
-            rows.append({**dict(zip(KEYS, key, strict=True)), "column": column,
-                         "mean": float(values.mean(skipna=False)),
-                         "std": float(values.std(ddof=1, skipna=False)) if len(values) > 1 else float("nan"),
-                         "min": float(values.min(skipna=False)), "max": float(values.max(skipna=False)),
-                         "n_seeds": int(len(values)),
-                         "values": " ".join(f"{s}:{v:.6g}" for s, v in values.items())})
+            rows.append({**dict(zip(KEYS, key, strict=True)), "column": column, **summary(values)})
     return pd.DataFrame(rows)
+
+
+def summary(values: pd.Series) -> dict:
+    """One quantity over the seeds (``values`` indexed by seed): the mean, the sample standard deviation (ddof 1;
+    NaN for one seed), the smallest and largest value, the number of seeds and each seed's value
+    (``seed:value``). A NaN seed makes every statistic NaN: a spread is never taken over the seeds that worked."""
+    return {"mean": float(values.mean(skipna=False)),
+            "std": float(values.std(ddof=1, skipna=False)) if len(values) > 1 else float("nan"),
+            "min": float(values.min(skipna=False)), "max": float(values.max(skipna=False)),
+            "n_seeds": int(len(values)),
+            "values": " ".join(f"{s}:{v:.6g}" for s, v in values.items())}
 
 
 def read(paths: list[Path], seeds: list[int]) -> dict[int, pd.DataFrame]:
