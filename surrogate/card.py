@@ -31,6 +31,12 @@ Quantities (``quantity``, ``unit``), per method and protocol K unless said other
 
 The article's figures (the config's ``B.article``) are rows of ``source = article``: their rollout MSE and,
 with the same ``d``, its ``rmse_diameters``.
+
+With two or more seeds the card also scores their **seed ensemble** (method ``seed_ensemble``): the seeds'
+models as one simulator that integrates the mean of their predicted accelerations every step
+(:mod:`surrogate.ensemble`), evaluated once on the same sims. Its rows hold that one evaluation (``mean``; no
+spread: ``n_seeds`` is the number of models in it), its ``train_seconds`` and ``train_cost`` are the sums over
+its models (an ensemble costs every model it averages) and its rollout time is N forward passes per frame.
 """
 
 from __future__ import annotations
@@ -61,7 +67,9 @@ NOT_APPLICABLE = ""          # written as an empty cell; an undefined number is 
 HARDWARE_COLUMNS = ("threads", "processes", "device", "device_name")
 COLUMNS = ("benchmark", "source", "method", "history", "n_predicted", "split", "quantity", "unit", "mean", "std",
            "min", "max", "total", "n_seeds", "n_sims", "values")
-LABELS = {MODEL: "Graph-DEM", BASELINE: "constant velocity", "gns": "GNS"}   # how the card.md names a method
+ENSEMBLE = "seed_ensemble"    # the method name of the seeds' models averaged at inference
+LABELS = {MODEL: "Graph-DEM", BASELINE: "constant velocity", "gns": "GNS",           # how the card.md names a method
+          ENSEMBLE: "seed ensemble"}
 
 
 @dataclass(frozen=True)
@@ -240,6 +248,43 @@ def combine(values: dict[int, pd.DataFrame], benchmark: str, split: str) -> pd.D
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 
+def together(trainings: dict[int, Training]) -> Training:
+    """The training of an ensemble of these models: their wall seconds and core- (or GPU-) hours summed."""
+    if not trainings:
+        raise ValueError("an ensemble needs at least one model's training")
+    units = sorted({t.unit for t in trainings.values()})
+    if len(units) > 1:
+        raise ValueError(f"the ensemble's models trained on different hardware ({units}); their costs have no "
+                         "common unit")
+    return Training(seconds=float(sum(t.seconds for t in trainings.values())),
+                    hours=float(sum(t.hours for t in trainings.values())), unit=units[0],
+                    hardware=tuple(dict.fromkeys(h for t in trainings.values() for h in t.hardware)),
+                    recorded=all(t.recorded for t in trainings.values()))
+
+
+def ensemble_rows(metrics: pd.DataFrame, steps: pd.DataFrame, diameter: float, trainings: dict[int, Training],
+                  benchmark: str, split: str) -> pd.DataFrame:
+    """The card's rows of the seed ensemble (module docstring) from its one evaluation (metrics.csv and
+    metrics_per_step.csv of ``graphdem evaluate`` with every seed's checkpoint; its Graph-DEM rows are the
+    ensemble's) and its models' trainings. Its constant velocity rows are the seeds' own and are left out."""
+    if len(trainings) < 2:
+        raise ValueError(f"a seed ensemble needs at least two models; got {len(trainings)}")
+    scored = str(metrics["split"].iloc[0]) if "split" in metrics and len(metrics) else None
+    if scored != split:
+        raise ValueError(f"the seed ensemble was scored on the {scored!r} split, the seeds on {split!r}; the card "
+                         "compares one split")
+    values = seed_values(metrics, steps, diameter, together(trainings))
+    values = values[values["method"] == MODEL]
+    rows = [{"benchmark": benchmark, "source": MEASURED, "method": ENSEMBLE, "history": v.history,
+             "n_predicted": v.n_predicted, "split": NOT_APPLICABLE if v.history == NOT_APPLICABLE else split,
+             "quantity": v.quantity, "unit": v.unit, "mean": float(v.value), "std": NOT_APPLICABLE,
+             "min": NOT_APPLICABLE, "max": NOT_APPLICABLE,
+             "total": float(v.value) if v.quantity == "blown_up" else NOT_APPLICABLE, "n_seeds": len(trainings),
+             "n_sims": v.n_sims, "values": "+".join(map(str, sorted(trainings)))}
+            for v in values.itertuples(index=False)]
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
 def article_rows(article: dict, diameter: float, benchmark: str) -> pd.DataFrame:
     """The article's figures (the config's ``B.article``: ``history``, ``split``, ``rollout_mse`` per method) as
     card rows of ``source = article``, with their RMSE in the same mean diameters."""
@@ -260,14 +305,18 @@ def article_rows(article: dict, diameter: float, benchmark: str) -> pd.DataFrame
 
 
 def card(tables: dict[int, tuple[pd.DataFrame, pd.DataFrame, Training]], stats: dict, article: dict,
-         benchmark: str) -> tuple[pd.DataFrame, str, str]:
+         benchmark: str, ensemble: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> tuple[pd.DataFrame, str, str]:
     """card.csv's table from each seed's (metrics.csv, metrics_per_step.csv, training), the dataset's stats.json
-    and the article's figures; also the split scored and its note."""
+    and the article's figures; also the split scored and its note. ``ensemble``: the seed ensemble's
+    (metrics.csv, metrics_per_step.csv), scored with every seed's model (:func:`ensemble_rows`)."""
     diameter = mean_diameter(stats)
     split, note = _split({s: m for s, (m, _, _) in tables.items()})
     values = {s: seed_values(m, st, diameter, tr) for s, (m, st, tr) in tables.items()}
-    table = pd.concat([combine(values, benchmark, split), article_rows(article, diameter, benchmark)],
-                      ignore_index=True)
+    parts = [combine(values, benchmark, split)]
+    if ensemble is not None:
+        parts.append(ensemble_rows(*ensemble, diameter, {s: tr for s, (_, _, tr) in tables.items()}, benchmark,
+                                   split))
+    table = pd.concat([*parts, article_rows(article, diameter, benchmark)], ignore_index=True)
     return table, split, note
 
 
@@ -279,6 +328,11 @@ def _cell(row: pd.Series) -> str:
     """A measured cell: mean +- std [min .. max] over the seeds; blow-ups as the count over all seeds."""
     if row["source"] == ARTICLE:
         return _number(row["mean"], 5)
+    if row["method"] == ENSEMBLE:
+        if row["quantity"] == "blown_up":
+            return f"{_number(row['total'])} of {int(row['n_sims'])}"
+        per = " in all" if row["quantity"] in ("train_seconds", "train_cost") else ""
+        return f"{_number(row['mean'])} ({int(row['n_seeds'])} models{per})"
     if row["quantity"] == "blown_up":
         return f"{_number(row['total'])} of {int(row['n_sims']) * int(row['n_seeds'])}"
     if int(row["n_seeds"]) == 1:
@@ -335,6 +389,10 @@ def markdown(table: pd.DataFrame, benchmark: str, split: str, note: str, diamete
         lines.append(f"| {label} | {k} | " + " | ".join(cells) + " |")
     hardware = sorted({h.describe() for t in trainings.values() for h in t.hardware})
     assumed = [s for s, t in trainings.items() if not t.recorded]
+    if (measured["method"] == ENSEMBLE).any():
+        lines += ["", "Seed ensemble: the seeds' models as one simulator that integrates the mean of their "
+                      "accelerations every step, scored once on the same sims; it costs every model's training and "
+                      "one forward pass per model per frame."]
     lines += ["", f"Mean particle diameter d = {diameter:.4g} m: the moving particles of the train split "
                   "(the dataset's stats.json); RMSE in diameters = sqrt(rollout MSE) / d.",
               f"Training hardware: {'; '.join(hardware)}"

@@ -235,8 +235,13 @@ def cmd_card(args) -> None:
         except ValueError as exc:
             raise ValueError(f"{history}: {exc}") from None
         tables[seed] = (pd.read_csv(metrics), pd.read_csv(steps), trainings[seed])
+    if (args.ensemble_metrics is None) != (args.ensemble_steps is None):
+        raise SystemExit("graphdem card: give both --ensemble-metrics and --ensemble-steps (the seed ensemble's "
+                         "evaluation), or neither")
+    ensemble = None if args.ensemble_metrics is None else (pd.read_csv(args.ensemble_metrics),
+                                                           pd.read_csv(args.ensemble_steps))
     stats = json.loads(Path(args.stats).read_text())
-    table, split, note = card.card(tables, stats, args.article_json, args.benchmark)
+    table, split, note = card.card(tables, stats, args.article_json, args.benchmark, ensemble)
     text = card.markdown(table, args.benchmark, split, note, card.mean_diameter(stats), trainings, args.device)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False, na_rep="NaN")
@@ -498,7 +503,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "  rollout_ms_per_frame  Graph-DEM's rollout wall time per predicted frame (ms)\n"
                     "  train_seconds         training wall time per model (history.csv's seconds)\n"
                     "  train_cost            each epoch's seconds x its threads x processes (CPU: core-hours)\n"
-                    "                        or x its processes (GPU: GPU-hours), summed, per model",
+                    "                        or x its processes (GPU: GPU-hours), summed, per model\n\n"
+                    "seed ensemble (--ensemble-metrics, --ensemble-steps): the seeds' models as one simulator that\n"
+                    "integrates their mean acceleration, scored once (method seed_ensemble, no spread); its\n"
+                    "training is every model's, summed",
         epilog="The workflow makes it (B: slide_samer or slide_small; the seeds: the config key seeds):\n"
                "  snakemake -c2 results/<B>/card.md --config solidgn_root=/path/to/solidgn")
     p.add_argument("--benchmark", choices=sorted(gcli.gconfig.BENCHMARKS), required=True,
@@ -511,6 +519,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--histories", type=Path, nargs="+", required=True,
                    help="each seed's model/history.csv (graphdem train), in --seeds order")
     p.add_argument("--stats", type=Path, required=True, help="the dataset's stats.json (the mean particle radius)")
+    p.add_argument("--ensemble-metrics", type=Path,
+                   help="the seed ensemble's metrics.csv (graphdem evaluate with every seed's --checkpoint): its "
+                        "rows join the card as seed_ensemble, costed as all its models")
+    p.add_argument("--ensemble-steps", type=Path, help="the seed ensemble's per-step table (with --ensemble-metrics)")
     p.add_argument("--article-json", type=_json, required=True,
                    help='the article\'s figures, the config\'s B.article: {"history": K, "split": "test", '
                         '"rollout_mse": {"graphdem": ..., "gns": ...}}')

@@ -208,6 +208,36 @@ def test_the_command_writes_the_csv_and_the_markdown(tmp_path):
     assert "Mean particle diameter d = 4 m" in text and "CPU (Some CPU, 2 logical CPUs)" in text
     assert "| training cost per model (core-hours) | all | 1 ± 0 [1 .. 1] |" in text
     assert "ours are on valid, not test" in text
+    with pytest.raises(SystemExit, match="both --ensemble-metrics and --ensemble-steps"):
+        cli.main([*argv, "--ensemble-metrics", args["--metrics"][0]])
+
+
+def test_the_seed_ensemble_is_one_evaluation_costed_as_all_its_models():
+    """The ensemble's rows: its own evaluation (no spread), its models' training summed, its constant velocity rows
+    left to the seeds; a split other than the seeds' is refused."""
+    seeds = three_seeds()
+    ensemble = (metrics(9.0, baseline=555.0, seconds=0.024), steps(1.0, 10.0))
+    table, _, _ = card.card(seeds, DIAMETER_STATS, ARTICLE, "slide_samer", ensemble)
+    mse = row(table, "rollout_mse", card.ENSEMBLE)
+    assert mse["mean"] == 9.0 and mse["n_seeds"] == 3 and mse["values"] == "0+1+2" and mse["std"] == card.NOT_APPLICABLE
+    assert row(table, "rollout_mse", card.ENSEMBLE, k=6)["mean"] == 27.0
+    assert row(table, "rmse_diameters", card.ENSEMBLE)["mean"] == pytest.approx(3.0 / 4.0)
+    assert row(table, "mse_first_frame", card.ENSEMBLE)["mean"] == 1.0
+    assert row(table, "mse_last_frame", card.ENSEMBLE)["mean"] == 10.0
+    assert row(table, "rollout_ms_per_frame", card.ENSEMBLE)["mean"] == pytest.approx(24.0)
+    assert row(table, "blown_up", card.ENSEMBLE)["total"] == 0
+    assert row(table, "train_seconds", card.ENSEMBLE, k="")["mean"] == 3 * 3600.0
+    assert row(table, "train_cost", card.ENSEMBLE, k="")["mean"] == pytest.approx(3.0)          # 3 x 1 core-hour
+    assert row(table, "rollout_mse", BASELINE)["mean"] == 100.0             # the seeds' constant velocity, not 555
+    assert not ((table["method"] == card.ENSEMBLE) & (table["quantity"] == "rollout_mse")
+                & (table["mean"] == 555.0)).any()
+    text = card.markdown(table, "slide_samer", "valid", "", 4.0, {s: t for s, (_, _, t) in seeds.items()}, "cpu")
+    assert "| seed ensemble |" in text and "9 (3 models)" in text and "3 (3 models in all)" in text
+    other = metrics(9.0).assign(split="test")
+    with pytest.raises(ValueError, match="seed ensemble was scored on the 'test' split"):
+        card.card(seeds, DIAMETER_STATS, ARTICLE, "slide_samer", (other, steps(1.0, 10.0)))
+    with pytest.raises(ValueError, match="at least two models"):
+        card.card({0: seeds[0]}, DIAMETER_STATS, ARTICLE, "slide_samer", ensemble)
 
 
 def test_the_command_refuses_a_file_count_that_does_not_match_the_seeds(tmp_path):

@@ -338,6 +338,7 @@ def test_the_benchmarks_target_plans_a_card_per_set_over_the_seeds(tmp_path, see
     n = len(config.BENCHMARKS)
     assert jobs["card"] == jobs["train"] == jobs["evaluate"] == jobs["import_solidgn"] == n
     assert jobs.get("train_seed", 0) == jobs.get("evaluate_seed", 0) == n * (seeds - 1)
+    assert jobs.get("evaluate_seed_ensemble", 0) == (n if seeds > 1 else 0)      # the seeds' models as one
     assert "seeds" not in jobs                       # the card reads the seeds' tables itself, not seeds.csv
     proc = snakemake(tmp_path / "work", "results/slide/card.md", "-n", config=(f"solidgn_root={root}",))
     assert proc.returncode != 0 and "No rule to produce results/slide/card.md" in proc.stdout + proc.stderr
@@ -374,6 +375,12 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     card = pd.read_csv(res / "card.csv")
     ours = card[card["source"] == "measured"]
     assert set(ours["n_seeds"]) == {2} and set(ours["split"].dropna()) == {"valid"}
+    cost = ours[ours["quantity"] == "train_cost"].set_index("method")["mean"]
+    assert cost["seed_ensemble"] == pytest.approx(2 * cost["graphdem"], rel=1e-6)   # sum of 2 models = 2 x mean
+    together = ours[(ours["method"] == "seed_ensemble") & (ours["quantity"] == "rollout_mse")]
+    assert len(together) == 2 and np.isfinite(together["mean"]).all() and set(together["n_seeds"]) == {2}
+    assert "| seed ensemble |" in (res / "card.md").read_text()
+    ours = ours[ours["method"] != "seed_ensemble"]
     per_k = ours.dropna(subset=["history"])
     pairs = set(zip(per_k["method"], per_k["history"], strict=True))
     assert pairs == {(m, k) for m in ("graphdem", "constant_velocity") for k in (2, 6)}

@@ -307,6 +307,20 @@ def seed_metrics(wildcards) -> list[str]:
     return [f"results/{wildcards.name}/metrics.csv", *(f"results/{wildcards.name}/seeds/{s}/metrics.csv" for s in rest)]
 
 
+def seed_checkpoints(wildcards) -> list[str]:
+    """Each seed's best.pt, in seed_metrics' order: the models of the seed ensemble."""
+    first, *rest = _seeds(wildcards.name)
+    return [f"results/{wildcards.name}/model/best.pt", *(f"results/{wildcards.name}/seeds/{s}/model/best.pt" for s in rest)]
+
+
+def seed_ensemble_tables(wildcards) -> dict[str, str]:
+    """The seed ensemble's metrics.csv and metrics_per_step.csv, which the card reads with two or more seeds."""
+    if len(_seeds(wildcards.name)) < 2:
+        return {}
+    folder = f"results/{wildcards.name}/seed_ensemble"
+    return {"ensemble_metrics": f"{folder}/metrics.csv", "ensemble_steps": f"{folder}/metrics_per_step.csv"}
+
+
 def seed_train_config_json(wildcards) -> str:
     """The train config with the seed of the job."""
     return _json({**_section(wildcards)["train"], "seed": int(wildcards.seed)})
@@ -341,6 +355,13 @@ def seed_histories(wildcards) -> list[str]:
 def article_json(wildcards) -> str:
     """The article's figures of a public benchmark (its `article` section), shown beside ours."""
     return _json(CFG[wildcards.name]["article"])
+
+
+def card_ensemble_args(wildcards) -> list[str]:
+    """--ensemble-metrics and --ensemble-steps of the seed ensemble (none with one seed)."""
+    tables = seed_ensemble_tables(wildcards)
+    return [] if not tables else ["--ensemble-metrics", tables["ensemble_metrics"],
+                                  "--ensemble-steps", tables["ensemble_steps"]]
 
 
 def card_machine_args(wildcards) -> list[str]:

@@ -56,6 +56,34 @@ rule evaluate_seed:
         "{params.metrics:q} {params.device:q} --no-progress > {log} 2>&1"
 
 
+# The seed ensemble: every seed's model as one simulator integrating their mean acceleration (surrogate/ensemble.py),
+# scored by the seeds' evaluation; the benchmark card reads it beside the seeds (docs/benchmarks.md, "Benchmark card").
+rule evaluate_seed_ensemble:
+    input:
+        checkpoints=seed_checkpoints,
+        splits="results/{name}/dataset/splits.csv",
+        ensemble=ensemble_sims,
+    output:
+        metrics="results/{name}/seed_ensemble/metrics.csv",
+        per_step="results/{name}/seed_ensemble/metrics_per_step.csv",
+    params:
+        evaluation=seed_evaluation_args,
+        runtime=runtime_json,
+        metrics=metric_args,
+        device=device_arg,
+    threads: 1
+    resources:
+        gpus=job_gpus,
+    log:
+        "results/{name}/seed_ensemble/logs/evaluate.log",
+    benchmark:
+        "results/{name}/seed_ensemble/benchmarks/evaluate.tsv"
+    shell:
+        "graphdem evaluate --checkpoint {input.checkpoints:q} --splits {input.splits:q} {params.evaluation:q} "
+        "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
+        "{params.metrics:q} {params.device:q} --no-progress > {log} 2>&1"
+
+
 rule seeds:
     input:
         seed_metrics,
