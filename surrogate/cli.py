@@ -40,6 +40,11 @@ def cmd_dataset(args) -> None:
         line += (f"; a cap of {counted['max_neighbours']} truncates {100 * counted['capped_receiver_fraction']:.3g} % "
                  f"of the receivers and drops {100 * counted['dropped_edge_fraction']:.3g} % of the edges")
     print(line)
+    floors = {k: v for k, v in (stats.get("contact_miss_floor") or {}).items() if v is not None}
+    if floors:
+        print("contacts of the next frame missed at R: at most "
+              + ", ".join(f"{100 * float(k):g} % for R > {v:.4g}" for k, v in floors.items())
+              + f" (R = {stats['connectivity_radius']:g} misses {100 * stats['contact_miss_rate']:.3g} %)")
     rate = stats.get("contact_miss_rate")
     if rate is not None and rate > dataset.CONTACT_MISS_WARNING:
         print(f"WARNING: R = {stats['connectivity_radius']:g} misses {100 * rate:.2g} % of the next frame's contacts "

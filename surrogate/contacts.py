@@ -11,6 +11,10 @@ counting the pairs with at least one moving particle (the graph never joins two 
 and their contact changes no prediction), every frame pair (t, t+1) of the trajectory. A radius
 with a miss rate of 0 on the data loses no contact in one step; the graph's cost grows with the
 edges per particle, about as R to the power of the dimension.
+
+The miss rate gives R a floor, not a value: :func:`miss_floor` is the radius R must exceed to miss at most
+a given share. On this project's scenes that floor is 1.1-1.5 mean diameters (docs/surrogate.md,
+"Connectivity radius"), while R also sets how far one message reaches, which is chosen on valid.
 """
 
 from __future__ import annotations
@@ -32,19 +36,37 @@ def contact_pairs(position: np.ndarray, radius: np.ndarray, moving: np.ndarray) 
     return pairs[touching].astype(np.int64)
 
 
+def contact_distances(position: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) -> np.ndarray:
+    """The centre distance at t of every contact at t+1 (module docstring), over every frame pair (t, t+1) of
+    ``position`` [T, N, D], in frame order: a graph of radius R misses exactly those at R or farther."""
+    position = np.asarray(position, np.float64)
+    moving = ~np.asarray(kinematic, bool)
+    out = [np.empty(0)]
+    for t in range(position.shape[0] - 1):
+        pairs = contact_pairs(position[t + 1], radius, moving)
+        out.append(np.linalg.norm(position[t, pairs[:, 0]] - position[t, pairs[:, 1]], axis=1))
+    return np.concatenate(out)
+
+
 def contact_misses(position: np.ndarray, radius: np.ndarray, connectivity_radius: float,
                    kinematic: np.ndarray) -> tuple[int, int]:
     """(missed, contacts) over every frame pair of ``position`` [T, N, D]: the contacts at t+1 (module
     docstring) and those of them whose centres are ``connectivity_radius`` or farther apart at t."""
-    position = np.asarray(position, np.float64)
-    moving = ~np.asarray(kinematic, bool)
-    missed = contacts = 0
-    for t in range(position.shape[0] - 1):
-        pairs = contact_pairs(position[t + 1], radius, moving)
-        before = np.linalg.norm(position[t, pairs[:, 0]] - position[t, pairs[:, 1]], axis=1)
-        missed += int((~(before < connectivity_radius)).sum())
-        contacts += len(pairs)
-    return missed, contacts
+    distances = contact_distances(position, radius, kinematic)
+    return int((~(distances < connectivity_radius)).sum()), len(distances)
+
+
+def miss_floor(distances: np.ndarray, miss_rate: float) -> float:
+    """The radius R must exceed to miss at most ``miss_rate`` of the contacts whose earlier centre distances are
+    ``distances`` (:func:`contact_distances`): with m = floor(miss_rate x n) misses allowed, the (m+1)-th largest
+    distance (every R above it misses at most m, R equal to it misses m+1). NaN without contacts."""
+    if not 0.0 <= miss_rate < 1.0:
+        raise ValueError(f"a contact-miss rate is in [0, 1); got {miss_rate!r}")
+    distances = np.asarray(distances, np.float64)
+    if distances.size == 0:
+        return float("nan")
+    allowed = int(np.floor(miss_rate * distances.size))
+    return float(np.sort(distances)[::-1][allowed])
 
 
 def contact_miss_rate(position: np.ndarray, radius: np.ndarray, connectivity_radius: float,

@@ -11,6 +11,10 @@ a cap applies to them too) of every frame but the last (the frames a graph is bu
 positions as training reads them. Their largest value, 99th percentile, mean and histogram, and for
 a given cap (the model config's ``max_neighbours``) the share of receivers it truncates and of edges
 it drops, let a cap be chosen from the data.
+
+For R itself they record the next-frame contacts of the train split (``next_frame_contacts``), the share a
+graph of radius R misses (``contact_miss_rate``) and the floors R must exceed to miss at most 1 %, 0.1 %,
+0.01 % and none of them (``contact_miss_floor``; :mod:`surrogate.contacts`).
 """
 
 from __future__ import annotations
@@ -24,10 +28,13 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
-from surrogate.contacts import contact_misses
+from surrogate.contacts import contact_distances, miss_floor
 from surrogate.neighbours import Histogram, check_cap, neighbour_counts
 
 CONTACT_MISS_WARNING = 0.01      # `graphdem dataset` warns above this contact-miss rate of R on the train split
+# stats.json's contact_miss_floor: the R above which at most this share of the train split's next-frame contacts is
+# missed (a report, not a setting)
+MISS_FLOOR_RATES = (1e-2, 1e-3, 1e-4, 0.0)
 
 
 class _Moments:
@@ -89,7 +96,7 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
     neighbours = Histogram()
     vel = acc = None
     meta = {}
-    misses = [0, 0]                      # next-frame contacts missed by a graph of radius R, and all of them
+    distances = []                       # per next-frame contact, its centre distance one frame earlier
     species = set()
     kinematic_species = set()
     props: dict[str, _Moments] = {}
@@ -108,9 +115,7 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
             raise ValueError(f"{path}: scene {traj.parameters.get('scene')!r} differs from the dataset's "
                              f"{meta['scene']!r} (one dataset holds one scene)")
         moving = ~traj.kinematic
-        missed, contacts = contact_misses(traj.position, traj.radius, connectivity_radius, traj.kinematic)
-        misses[0] += missed
-        misses[1] += contacts
+        distances.append(contact_distances(traj.position, traj.radius, traj.kinematic))
         neighbours.merge(frame_neighbours(traj, connectivity_radius))
         p = np.asarray(traj.position, np.float64)[:, moving]
         v = np.diff(p, axis=0)
@@ -124,6 +129,8 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
         species.update(np.unique(traj.species).tolist())
         kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
     floor = 1e-12
+    distances = np.concatenate(distances)
+    missed = int((~(distances < connectivity_radius)).sum())
     return {
         **meta,
         "velocity_mean": vel.mean.tolist(), "velocity_std": np.maximum(vel.std, floor).tolist(),
@@ -132,7 +139,11 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
         "connectivity_radius": float(connectivity_radius),
         # the share of the next frame's contacts whose pair is R or farther apart in the frame the graph is built
         # on (surrogate/contacts.py): contacts the model cannot see coming
-        "contact_miss_rate": misses[0] / misses[1] if misses[1] else None, "next_frame_contacts": int(misses[1]),
+        "contact_miss_rate": missed / len(distances) if len(distances) else None,
+        "next_frame_contacts": len(distances),
+        # the radius R must exceed to miss at most that share of them (surrogate/contacts.py, miss_floor)
+        "contact_miss_floor": {f"{rate:g}": miss_floor(distances, rate) if len(distances) else None
+                               for rate in MISS_FLOOR_RATES},
         "n_types": int(max(species)) + 1, "kinematic_species": sorted(int(s) for s in kinematic_species),
         "n_train_sims": len(paths), "n_velocity_samples": int(vel.n),
         # every receiver's senders within R (itself not counted) over the train frames a graph is built on, and

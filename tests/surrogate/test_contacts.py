@@ -69,3 +69,24 @@ def test_random_packings_against_brute_force(dim):
                                          if not (kinematic[i] and kinematic[j])
                                          and np.linalg.norm(frame[i] - frame[j]) < r)) / n for frame in position])
         assert value == pytest.approx(expected)
+
+
+def test_the_miss_floor_is_the_radius_that_misses_at_most_the_share():
+    """miss_floor(q): every R above it misses at most q of the contacts, R equal to it misses more (by hand on the
+    three discs, then on random motion against the brute-force rate)."""
+    distances = contacts.contact_distances(THREE, RADII, C_KINEMATIC)
+    assert sorted(distances.tolist()) == pytest.approx([3.0, 5.0])          # A-C 3 m apart before, A-B 5 m
+    assert contacts.miss_floor(distances, 0.0) == 5.0                         # miss none: R > 5 m
+    assert contacts.miss_floor(distances, 0.5) == 3.0                         # miss one of two: R > 3 m
+    rng = np.random.default_rng(7)
+    walk = np.cumsum(rng.normal(0.0, 0.4, (12, 40, 2)), axis=0) + rng.uniform(0, 12, (1, 40, 2))
+    radii, kinematic = rng.uniform(0.4, 0.8, 40), rng.random(40) < 0.2
+    distances = contacts.contact_distances(walk, radii, kinematic)
+    assert len(distances) > 50
+    for rate in (0.0, 0.01, 0.1, 0.5):
+        r = contacts.miss_floor(distances, rate)
+        assert contacts.contact_miss_rate(walk, radii, np.nextafter(r, np.inf), kinematic) <= rate
+        assert contacts.contact_miss_rate(walk, radii, r, kinematic) > rate
+    assert math.isnan(contacts.miss_floor(np.empty(0), 0.01))
+    with pytest.raises(ValueError, match=r"contact-miss rate is in \[0, 1\); got 1.0"):
+        contacts.miss_floor(distances, 1.0)

@@ -64,12 +64,18 @@ def test_stats_record_the_contact_miss_rate_of_r_on_the_train_split(tiny_dataset
     stats = json.loads(tiny_dataset["stats_path"].read_text())
     table = pd.read_csv(tiny_dataset["splits"])
     missed = total = 0
-    for path in table.loc[table["split"] == "train", "path"]:
-        traj = h5md.read(path)
+    trajectories = [h5md.read(path) for path in table.loc[table["split"] == "train", "path"]]
+    for traj in trajectories:
         m, c = contacts.contact_misses(traj.position, traj.radius, stats["connectivity_radius"], traj.kinematic)
         missed, total = missed + m, total + c
     assert total > 0 and stats["next_frame_contacts"] == total
     assert stats["contact_miss_rate"] == pytest.approx(missed / total)
+    # the floors: just above each, the train split's contacts missed are at most that share; at it, more
+    for rate, floor in stats["contact_miss_floor"].items():
+        for r, most in ((np.nextafter(floor, np.inf), True), (floor, False)):
+            m = sum(contacts.contact_misses(t.position, t.radius, r, t.kinematic)[0] for t in trajectories)
+            assert (m <= float(rate) * total) == most, (rate, r, m, total)
+    assert list(stats["contact_miss_floor"]) == ["0.01", "0.001", "0.0001", "0"]
     tight = dataset.build(table, tmp_path / "tight", 1.0e-3)        # no pair is closer than 1 mm
     assert tight["contact_miss_rate"] == 1.0
     assert cli.main(["dataset", "--scene", "slide", "--table", str(tiny_dataset["splits"]),
