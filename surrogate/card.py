@@ -269,11 +269,11 @@ def ensemble_rows(metrics: pd.DataFrame, steps: pd.DataFrame, diameter: float, t
     ensemble's) and its models' trainings. Its constant velocity rows are the seeds' own and are left out."""
     if len(trainings) < 2:
         raise ValueError(f"a seed ensemble needs at least two models; got {len(trainings)}")
-    scored = str(metrics["split"].iloc[0]) if "split" in metrics and len(metrics) else None
+    values = seed_values(metrics, steps, diameter, together(trainings))      # checks metrics.csv's columns
+    scored = str(metrics["split"].iloc[0])
     if scored != split:
         raise ValueError(f"the seed ensemble was scored on the {scored!r} split, the seeds on {split!r}; the card "
                          "compares one split")
-    values = seed_values(metrics, steps, diameter, together(trainings))
     values = values[values["method"] == MODEL]
     rows = [{"benchmark": benchmark, "source": MEASURED, "method": ENSEMBLE, "history": v.history,
              "n_predicted": v.n_predicted, "split": NOT_APPLICABLE if v.history == NOT_APPLICABLE else split,

@@ -53,7 +53,13 @@ def contact_misses(position: np.ndarray, radius: np.ndarray, connectivity_radius
     """(missed, contacts) over every frame pair of ``position`` [T, N, D]: the contacts at t+1 (module
     docstring) and those of them whose centres are ``connectivity_radius`` or farther apart at t."""
     distances = contact_distances(position, radius, kinematic)
-    return int((~(distances < connectivity_radius)).sum()), len(distances)
+    return missed_at(distances, connectivity_radius), len(distances)
+
+
+def missed_at(distances: np.ndarray, connectivity_radius: float) -> int:
+    """How many of the contacts whose earlier centre distances are ``distances`` (:func:`contact_distances`) a
+    graph of radius ``connectivity_radius`` misses: those at R or farther (a NaN distance counts as missed)."""
+    return int((~(np.asarray(distances) < connectivity_radius)).sum())
 
 
 def miss_floor(distances: np.ndarray, miss_rate: float) -> float:

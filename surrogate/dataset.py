@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
-from surrogate.contacts import contact_distances, miss_floor
+from surrogate.contacts import contact_distances, miss_floor, missed_at
 from surrogate.neighbours import Histogram, check_cap, neighbour_counts
 
 CONTACT_MISS_WARNING = 0.01      # `graphdem dataset` warns above this contact-miss rate of R on the train split
@@ -130,7 +130,7 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
         kinematic_species.update(np.unique(traj.species[traj.kinematic]).tolist())
     floor = 1e-12
     distances = np.concatenate(distances)
-    missed = int((~(distances < connectivity_radius)).sum())
+    missed = missed_at(distances, connectivity_radius)
     return {
         **meta,
         "velocity_mean": vel.mean.tolist(), "velocity_std": np.maximum(vel.std, floor).tolist(),
