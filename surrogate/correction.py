@@ -28,35 +28,50 @@ summed pushes (a 20 x 20 square lattice of unit discs at spacing 1.8 inside fixe
 to 1.0 radii in 200 sweeps summed, to 0.40 averaged). With the box given, the
 moving particles are then put back into it (as ``keep_in_domain`` does), so the correction never
 pushes a particle out. ``iterations`` sweeps at most; the sweeps stop early once no pair overlaps
-too much. Pairs are searched anew every sweep with :func:`surrogate.graph.radius_graph` at
-2 max(r) (no pair closer than r_i + r_j is farther apart), leaving out pairs of two kinematic
-particles.
+too much.
+
+Pairs are searched with a Verlet list, as DEM codes search contacts: the pairs closer than
+2 max(r) + s (no pair closer than r_i + r_j is farther apart than 2 max(r)), with the skin
+s = ``SKIN`` max(r), are found once by the radius graph's search (:mod:`surrogate.graph`), leaving
+out pairs of two kinematic particles, and each sweep measures only those. The list is searched
+anew once a particle has moved more than s / 2 since the search: until then no two particles
+have closed in by more than s, so no pair closer than 2 max(r) is missing, and the sweeps find
+exactly the pairs a search every sweep would find (test). The skin trades the pairs measured per
+sweep against the searches.
 """
 
 from __future__ import annotations
 
 import torch
 
-from surrogate.graph import radius_graph
+from surrogate.graph import cell_list_pairs, choose_method, kdtree_pairs
+
+SKIN = 0.5          # the Verlet list's skin s, in units of the largest radius (module docstring)
 
 
-def overlap_pairs(position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor) -> torch.Tensor:
-    """[2, P] pairs i < j, at least one of them moving, whose centres are closer than 2 max(r)."""
-    edges = radius_graph(position, 2 * float(radius.max()), ~moving, self_loops=False)
-    return edges[:, edges[0] < edges[1]]
+def overlap_pairs(position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor,
+                  reach: float | None = None) -> torch.Tensor:
+    """[2, P] pairs, each once, at least one of them moving, whose centres are closer than ``reach``
+    (by default 2 max(r), the farthest two particles can be apart and still overlap)."""
+    x = position.detach()
+    reach = 2 * float(radius.max()) if reach is None else reach
+    pairs = kdtree_pairs(x, reach) if choose_method(x) == "kdtree" else cell_list_pairs(x, reach)
+    moving = moving.to(pairs.device)
+    return pairs[:, moving.index_select(0, pairs[0]) | moving.index_select(0, pairs[1])]
 
 
 def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor, allowed_overlap: float,
                      iterations: int, lower: torch.Tensor | None = None,
-                     upper: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
+                     upper: torch.Tensor | None = None, *, skin: float = SKIN) -> tuple[torch.Tensor, int]:
     """``position`` [N, D] with the overlaps above ``allowed_overlap`` (a fraction of the smaller
     radius) pushed apart in at most ``iterations`` Jacobi sweeps (module docstring), the moving
     particles kept in the box ``[lower, upper]`` when it is given; ``radius`` [N], ``moving`` [N]
-    bool. Returns the corrected positions (a new tensor; ``position`` is left as it is) and the
+    bool; ``skin`` the Verlet list's, in largest radii (0: a search before every sweep that follows
+    motion). Returns the corrected positions (a new tensor; ``position`` is left as it is) and the
     number of pairs that overlapped too much before the correction."""
-    if allowed_overlap < 0 or iterations < 1:
-        raise ValueError(f"contact correction: allowed_overlap = {allowed_overlap!r} must be >= 0 and "
-                         f"iterations = {iterations!r} >= 1")
+    if allowed_overlap < 0 or iterations < 1 or skin < 0:
+        raise ValueError(f"contact correction: allowed_overlap = {allowed_overlap!r} must be >= 0, "
+                         f"iterations = {iterations!r} >= 1 and skin = {skin!r} >= 0")
     x = position.clone()
     n, dim = x.shape
     if n < 2 or not bool(moving.any()):
@@ -67,30 +82,35 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
     hi = None if upper is None else upper.to(x)
     first_axis = torch.zeros(dim, dtype=x.dtype, device=x.device)
     first_axis[0] = 1
-    found = 0
+    skin = skin * float(r.max())
+    reach = 2 * float(r.max()) + skin
+    found, listed_at = 0, None
     for sweep in range(iterations):
-        i, j = overlap_pairs(x, r, moving)
+        if listed_at is None or float((x - listed_at).norm(dim=-1).max()) > skin / 2:
+            listed_at = x.clone()
+            i, j = overlap_pairs(x, r, moving, reach)
+            ri, rj = r.index_select(0, i), r.index_select(0, j)
+            closest = ri + rj - allowed_overlap * torch.minimum(ri, rj)     # the allowed centre distance
+            mi, mj = inverse_mass.index_select(0, i), inverse_mass.index_select(0, j)
+            share_i, share_j = mi / (mi + mj), mj / (mi + mj)             # mi + mj > 0: a moving particle
+            counts_i, counts_j = (mi > 0).to(x.dtype), (mj > 0).to(x.dtype)
         gap = x.index_select(0, j) - x.index_select(0, i)
         distance = gap.norm(dim=-1)
-        ri, rj = r.index_select(0, i), r.index_select(0, j)
-        excess = ri + rj - allowed_overlap * torch.minimum(ri, rj) - distance
+        excess = closest - distance
         over = excess > 0
         if sweep == 0:
             found = int(over.sum())
         if not bool(over.any()):
             break
-        i, j, gap, distance, excess = i[over], j[over], gap[over], distance[over], excess[over]
         normal = torch.where((distance > 0).unsqueeze(-1), gap / distance.clamp(min=torch.finfo(x.dtype).tiny)
                              .unsqueeze(-1), first_axis)
-        mi, mj = inverse_mass.index_select(0, i), inverse_mass.index_select(0, j)
-        total = mi + mj                                  # > 0: every pair has a moving particle
-        push = (excess / total).unsqueeze(-1) * normal
+        push = excess.clamp(min=0).unsqueeze(-1) * normal                 # zero for the pairs not too deep
         shift = torch.zeros_like(x)
-        shift.index_add_(0, i, -mi.unsqueeze(-1) * push)
-        shift.index_add_(0, j, mj.unsqueeze(-1) * push)
+        shift.index_add_(0, i, -share_i.unsqueeze(-1) * push)
+        shift.index_add_(0, j, share_j.unsqueeze(-1) * push)
         pairs = torch.zeros(n, dtype=x.dtype, device=x.device)
-        pairs.index_add_(0, i, (mi > 0).to(x.dtype))
-        pairs.index_add_(0, j, (mj > 0).to(x.dtype))
+        pairs.index_add_(0, i, counts_i * over)
+        pairs.index_add_(0, j, counts_j * over)
         x += shift / pairs.clamp(min=1).unsqueeze(-1)
         if lo is not None and hi is not None:
             x[moving] = torch.maximum(torch.minimum(x[moving], hi), lo)

@@ -7,9 +7,9 @@ import pytest
 import torch
 
 from generators.blowup import overlap_fractions as overlap_fractions_np
-from surrogate import runtime
+from surrogate import correction, runtime
 from surrogate.batched import rollout_batch
-from surrogate.correction import correct_overlaps
+from surrogate.correction import correct_overlaps, overlap_pairs
 from surrogate.rollout import rollout
 
 
@@ -18,6 +18,59 @@ def overlap_fractions(x: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
     i, j = torch.triu_indices(len(x), len(x), offset=1)
     d = (x[i] - x[j]).norm(dim=-1)
     return (r[i] + r[j] - d) / torch.minimum(r[i], r[j])
+
+
+def squeezed_packing(n: int, dim: int, seed: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """A jittered lattice of ``n`` particles squeezed to 0.9 of its spacing (radii 0.5-0.55), the first
+    tenth kinematic: many overlaps, pushes large enough to move particles past the Verlet skin."""
+    generator = torch.Generator().manual_seed(seed)
+    side = int(round(n ** (1 / dim))) + 1
+    lattice = torch.stack(torch.meshgrid(*[torch.arange(side)] * dim, indexing="ij"), -1).reshape(-1, dim)[:n]
+    x = (lattice.double() + 0.15 * torch.randn((n, dim), generator=generator, dtype=torch.float64)) * 0.9
+    r = 0.5 * (1 + 0.1 * torch.rand(n, generator=generator, dtype=torch.float64))
+    moving = torch.ones(n, dtype=torch.bool)
+    moving[: n // 10] = False
+    return x, r, moving
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_overlap_pairs_are_every_pair_within_reach_with_a_moving_particle_once(dim):
+    x, r, moving = squeezed_packing(120, dim, seed=dim)
+    moving[:40] = False
+    pairs = overlap_pairs(x, r, moving, reach=1.7)
+    found = {tuple(sorted(pair)) for pair in pairs.T.tolist()}
+    assert len(found) == pairs.shape[1]                                            # each pair once
+    i, j = torch.triu_indices(len(x), len(x), offset=1)
+    close = ((x[i] - x[j]).norm(dim=-1) < 1.7) & (moving[i] | moving[j])            # brute force
+    assert found == set(zip(i[close].tolist(), j[close].tolist(), strict=True))
+    assert pairs.shape[1] > 0 and int((~moving[i] & ~moving[j] & ((x[i] - x[j]).norm(dim=-1) < 1.7)).sum()) > 0
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_verlet_list_finds_what_a_search_every_sweep_finds(dim, monkeypatch):
+    """The skin only saves searches: with no skin (a search before every sweep that follows any motion)
+    the corrected positions are the same to rounding, and the default skin searches far less often, yet
+    more than once (particles moved past half the skin, so the list was renewed)."""
+    x, r, moving = squeezed_packing(300, dim, seed=10 + dim)
+    box = (x.min(dim=0).values - 1, x.max(dim=0).values + 1)
+    searches = []
+
+    def counted(*args):
+        searches.append(1)
+        return overlap_pairs(*args)
+
+    monkeypatch.setattr(correction, "overlap_pairs", counted)
+    listed, found = correct_overlaps(x, r, moving, 0.05, 60, *box)
+    listed_searches = len(searches)
+    searches.clear()
+    every_sweep, found_every = correct_overlaps(x, r, moving, 0.05, 60, *box, skin=0.0)
+    assert found == found_every > 100
+    torch.testing.assert_close(listed, every_sweep, rtol=0, atol=1e-12)
+    assert 1 < listed_searches < len(searches) / 3
+    i, j = torch.triu_indices(len(x), len(x), offset=1)
+    corrected = moving[i] | moving[j]                                   # two kinematic particles stay as they are
+    deepest = float(overlap_fractions(x, r)[corrected].max())
+    assert float(overlap_fractions(listed, r)[corrected].max()) < deepest / 2
 
 
 def test_two_equal_discs_are_separated_to_the_allowed_overlap_around_their_centre_of_mass():
@@ -109,6 +162,8 @@ def test_bad_settings_are_refused():
         correct_overlaps(x, r, moving, -0.1, 1)
     with pytest.raises(ValueError, match="iterations = 0"):
         correct_overlaps(x, r, moving, 0.1, 0)
+    with pytest.raises(ValueError, match="skin = -0.5"):
+        correct_overlaps(x, r, moving, 0.1, 1, skin=-0.5)
 
 
 def test_a_single_or_resting_set_is_returned_unchanged():
