@@ -98,6 +98,37 @@ def _train_sections(args) -> tuple[dict, dict, str, Path, Path, Path]:
     return model, train_cfg, device, *paths
 
 
+def cmd_contacts(args) -> None:
+    import pandas as pd
+
+    from generators import h5md
+    from surrogate.contacts import cap_table
+    table = pd.read_csv(args.splits)
+    if "path" not in table.columns or "split" not in table.columns:
+        raise SystemExit(f"{args.splits}: a dataset's splits.csv (columns id, split, path) is needed")
+    paths = [Path(p) for p in table.loc[table["split"] == args.split, "path"]]       # as the other stages read them
+    if not paths:
+        raise SystemExit(f"{args.splits}: no sim in split {args.split!r} (splits: {sorted(set(table['split']))})")
+    paths = paths[: args.sims] if args.sims else paths
+
+    def sims():
+        for path in paths:
+            traj = h5md.read(path)
+            yield traj.position, traj.radius, traj.kinematic
+
+    caps = [None] + sorted(set(args.cap or []))
+    rows = cap_table(sims(), sorted(set(args.radius)), caps)
+    print(f"{len(paths)} {args.split} sims of {args.splits}: directed next-frame contacts missed by a graph of "
+          f"radius R capped at N senders per receiver (surrogate/contacts.py)")
+    print("| R | cap | contacts | missed | miss rate | senders per receiver |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for row in rows:
+        print(f"| {row['connectivity_radius']:g} | {row['cap'] if row['cap'] is not None else 'none'} "
+              f"| {row['contacts']} | {row['missed']} | {row['miss_rate']:.3%} | {row['senders_per_receiver']:.2f} |")
+    if args.out:
+        pd.DataFrame(rows).to_csv(args.out, index=False)
+
+
 def cmd_train(args) -> None:
     from surrogate import distributed, train
     model, train_cfg, device, stats, splits, out_dir = _train_sections(args)
@@ -406,6 +437,21 @@ def build_parser() -> argparse.ArgumentParser:
                         "it truncates and of edges it drops on the train split; default: no cap")
     p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
     p.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser("contacts", help="next-frame contacts a graph of radius R, capped or not, would miss",
+                       description="For each R and neighbour cap N: the share of next-frame contacts (a moving "
+                                   "receiver, a sender touching it one frame later) whose sender is R or farther "
+                                   "away, or not among the receiver's N nearest, in the frame the graph is built "
+                                   "on; and the senders per receiver the graph keeps. The contact-miss rate that "
+                                   "chooses R and max_neighbours (docs/surrogate.md, Neighbour cap).")
+    p.add_argument("--splits", type=Path, required=True, help="a dataset's splits.csv (id, split, path)")
+    p.add_argument("--split", default="train", help="the split to count (default: train)")
+    p.add_argument("--radius", type=float, nargs="+", required=True, metavar="R", help="connectivity radii (m)")
+    p.add_argument("--cap", type=int, nargs="*", metavar="N",
+                   help="neighbour caps (senders per receiver, at most 64); no cap is always a row")
+    p.add_argument("--sims", type=int, help="only the split's first N sims")
+    p.add_argument("--out", type=Path, help="also write the table as CSV")
+    p.set_defaults(func=cmd_contacts)
 
     p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
                        description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "

@@ -2,12 +2,14 @@
 
 import json
 
+import pandas as pd
 import pytest
 import yaml
 
-from generators import config
-from surrogate import checkpoint, cli
+from generators import config, h5md
+from surrogate import checkpoint, cli, contacts
 from surrogate import derived as derived_rules
+from tests.surrogate import synthetic
 
 
 def train(tiny, out, *options):
@@ -61,3 +63,22 @@ def test_train_needs_a_scene_or_the_workflows_sections(tmp_path):
         cli.main(["train", "--out-dir", str(tmp_path)])
     with pytest.raises(SystemExit, match="go together"):
         cli.main(["train", "--scene", "slide", "--model-json", "{}", "--out-dir", str(tmp_path)])
+
+
+def test_contacts_prints_and_writes_the_capped_miss_table_of_a_split(tmp_path, capsys):
+    data = synthetic.build(tmp_path)
+    out = tmp_path / "contacts.csv"
+    cli.main(["contacts", "--splits", str(data["splits"]), "--radius", "1.6", "0.82", "--cap", "4", "2",
+              "--out", str(out)])
+    printed = capsys.readouterr().out
+    assert "2 train sims" in printed and "| 1.6 | 4 |" in printed
+    table = pd.read_csv(out)
+    assert list(zip(table["connectivity_radius"], table["cap"].fillna(0), strict=True)) == [
+        (0.82, 0), (0.82, 2), (0.82, 4), (1.6, 0), (1.6, 2), (1.6, 4)]            # sorted, no cap first
+    train = [h5md.read(data["paths"][name]) for name, split in data["split_of"].items() if split == "train"]
+    expected = contacts.cap_table([(t.position, t.radius, t.kinematic) for t in train], [0.82, 1.6], [None, 2, 4])
+    assert table["missed"].tolist() == [row["missed"] for row in expected]
+    assert table["senders_per_receiver"].tolist() == pytest.approx([row["senders_per_receiver"] for row in expected])
+    assert table["contacts"].iloc[0] > 50 and table["missed"].iloc[0] > table["missed"].iloc[3]
+    with pytest.raises(SystemExit, match="no sim in split 'tset'"):
+        cli.main(["contacts", "--splits", str(data["splits"]), "--split", "tset", "--radius", "1.6"])

@@ -90,3 +90,63 @@ def test_the_miss_floor_is_the_radius_that_misses_at_most_the_share():
     assert math.isnan(contacts.miss_floor(np.empty(0), 0.01))
     with pytest.raises(ValueError, match=r"contact-miss rate is in \[0, 1\); got 1.0"):
         contacts.miss_floor(distances, 1.0)
+
+
+def graph_misses(position, radius, kinematic, r_graph, cap):
+    """Directed next-frame contacts (moving receiver) whose sender -> receiver edge the model's own capped
+    graph at t lacks: radius_graph, then cap_neighbours, as the simulator builds it."""
+    import torch
+
+    from surrogate.graph import cap_neighbours, radius_graph
+    missed = total = 0
+    for t in range(len(position) - 1):
+        x = torch.from_numpy(position[t])
+        edges = radius_graph(x, r_graph, torch.from_numpy(kinematic))
+        if cap is not None:
+            edges = cap_neighbours(edges, x, cap).edge_index
+        present = set(zip(edges[0].tolist(), edges[1].tolist(), strict=True))
+        for i, j in itertools.permutations(range(position.shape[1]), 2):
+            if kinematic[i] or np.linalg.norm(position[t + 1, i] - position[t + 1, j]) >= radius[i] + radius[j]:
+                continue
+            total += 1
+            missed += (j, i) not in present                        # sender j, receiver i
+    return missed, total
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_capped_misses_are_the_contacts_the_capped_graph_lacks(dim):
+    rng = np.random.default_rng(10 + dim)
+    n, frames = 50, 5
+    position = np.cumsum(rng.normal(0.0, 0.35, (frames, n, dim)), axis=0) + rng.uniform(0, 4.5, (1, n, dim))
+    radius = rng.uniform(0.3, 0.6, size=n)
+    kinematic = rng.random(n) < 0.25
+    distances, ranks = contacts.contact_ranks(position, radius, kinematic)
+    rates = {}
+    for r_graph in (1.0, 1.6, 3.0):
+        for cap in (None, 1, 2, 4, 8):
+            missed = contacts.capped_misses(distances, ranks, r_graph, cap)
+            assert (missed, len(distances)) == graph_misses(position, radius, kinematic, r_graph, cap)
+            rates[r_graph, cap] = missed / len(distances)
+    assert len(distances) > 40
+    assert rates[3.0, 1] > rates[3.0, 4] > rates[3.0, None]          # a tighter cap misses more
+    assert rates[1.0, None] > rates[3.0, None]
+    with pytest.raises(ValueError, match="cap of 65 cannot be scored"):
+        contacts.capped_misses(distances, ranks, 3.0, 65)
+
+
+def test_the_cap_table_counts_senders_per_receiver_by_hand():
+    """Three discs in a row 1 m apart (radius 0.6, the middle one kinematic), then the ends pressed in by 0.1 m:
+    two directed contacts at the second frame (each end <- the middle; the middle is a kinematic receiver, the
+    ends 1.8 m apart do not touch), both 1 m apart before, so no R above 1 m misses them. Senders per moving
+    receiver and frame: the middle at R = 1.5 m (1); at R = 1.9 m also the other end in the second frame only
+    (2.0 then 1.8 m away: 1.5); at R = 2.5 m both frames (2); capped at one sender, 1 everywhere."""
+    position = np.array([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], [[0.1, 0.0], [1.0, 0.0], [1.9, 0.0]]])
+    kinematic = np.array([False, True, False])
+    rows = contacts.cap_table([(position, np.full(3, 0.6), kinematic)], [1.5, 1.9, 2.5], [None, 1])
+    table = {(row["connectivity_radius"], row["cap"]): row for row in rows}
+    assert all(row["contacts"] == 2 and row["missed"] == 0 for row in rows)
+    assert [table[r, None]["senders_per_receiver"] for r in (1.5, 1.9, 2.5)] == [1.0, 1.5, 2.0]
+    assert [table[r, 1]["senders_per_receiver"] for r in (1.5, 1.9, 2.5)] == [1.0, 1.0, 1.0]
+    assert contacts.cap_table([(position, np.full(3, 0.6), kinematic)], [0.9], [None])[0]["missed"] == 2
+    with pytest.raises(ValueError, match="cap of 0 cannot be scored"):
+        contacts.cap_table([], [1.0], [0])
