@@ -154,8 +154,8 @@ def edges_per_particle(position: np.ndarray, connectivity_radius: float, kinemat
 def cap_table(sims, radii: list[float], caps: list[int | None]) -> list[dict]:
     """For each connectivity radius in ``radii`` and cap in ``caps`` (None: no cap), over ``sims`` (an iterable
     of (position [T, N, D], radius [N], kinematic [N])): the directed next-frame contacts, those missed, their
-    share, and the senders per moving receiver and frame the capped graph keeps (its self edge not counted;
-    the graph's cost grows with it). Rows in the order radius, then cap."""
+    share, and the senders per moving receiver the capped graph keeps in the frames a graph is built on (all
+    but the last; its self edge not counted; the graph's cost grows with it). Rows in the order radius, then cap."""
     from surrogate.neighbours import neighbour_counts
     for cap in caps:
         if cap is not None and not 1 <= cap <= RANK_LIMIT:
@@ -168,9 +168,10 @@ def cap_table(sims, radii: list[float], caps: list[int | None]) -> list[dict]:
         distances.append(d)
         ranks.append(k)
         moving = ~np.asarray(kinematic, bool)
-        receivers += int(moving.sum()) * len(position)
+        built_on = np.asarray(position)[:-1]           # the frames a graph is built on: all but the last
+        receivers += int(moving.sum()) * len(built_on)
         for r in radii:
-            counts = np.stack([neighbour_counts(frame, r, kinematic)[moving] for frame in np.asarray(position)])
+            counts = np.stack([neighbour_counts(frame, r, kinematic)[moving] for frame in built_on])
             for c in caps:
                 senders[r, c] += int((counts if c is None else np.minimum(counts, c)).sum())
     distances = np.concatenate(distances) if distances else np.empty(0)

@@ -135,18 +135,20 @@ def test_capped_misses_are_the_contacts_the_capped_graph_lacks(dim):
 
 
 def test_the_cap_table_counts_senders_per_receiver_by_hand():
-    """Three discs in a row 1 m apart (radius 0.6, the middle one kinematic), then the ends pressed in by 0.1 m:
-    two directed contacts at the second frame (each end <- the middle; the middle is a kinematic receiver, the
-    ends 1.8 m apart do not touch), both 1 m apart before, so no R above 1 m misses them. Senders per moving
-    receiver and frame: the middle at R = 1.5 m (1); at R = 1.9 m also the other end in the second frame only
-    (2.0 then 1.8 m away: 1.5); at R = 2.5 m both frames (2); capped at one sender, 1 everywhere."""
-    position = np.array([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], [[0.1, 0.0], [1.0, 0.0], [1.9, 0.0]]])
+    """Three discs in a row 1 m apart (radius 0.6, the middle one kinematic), then the ends pressed in by 0.1 m,
+    then by 0.2 m: at the second frame two directed contacts (each end <- the middle; the middle is a kinematic
+    receiver, the ends 1.8 m apart do not touch), 1 m apart before; at the third frame the same two, 0.9 m
+    apart before. Senders per moving receiver over the frames a graph is built on (the first two): the middle
+    at R = 1.5 m (1); at R = 1.9 m also the other end in the second frame only (2.0 then 1.8 m away: 1.5); at
+    R = 2.5 m in both (2); capped at one sender, 1 everywhere."""
+    position = np.array([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], [[0.1, 0.0], [1.0, 0.0], [1.9, 0.0]],
+                         [[0.2, 0.0], [1.0, 0.0], [1.8, 0.0]]])
     kinematic = np.array([False, True, False])
     rows = contacts.cap_table([(position, np.full(3, 0.6), kinematic)], [1.5, 1.9, 2.5], [None, 1])
     table = {(row["connectivity_radius"], row["cap"]): row for row in rows}
-    assert all(row["contacts"] == 2 and row["missed"] == 0 for row in rows)
+    assert all(row["contacts"] == 4 and row["missed"] == 0 for row in rows)
     assert [table[r, None]["senders_per_receiver"] for r in (1.5, 1.9, 2.5)] == [1.0, 1.5, 2.0]
     assert [table[r, 1]["senders_per_receiver"] for r in (1.5, 1.9, 2.5)] == [1.0, 1.0, 1.0]
-    assert contacts.cap_table([(position, np.full(3, 0.6), kinematic)], [0.9], [None])[0]["missed"] == 2
+    assert contacts.cap_table([(position, np.full(3, 0.6), kinematic)], [0.95], [None])[0]["missed"] == 2
     with pytest.raises(ValueError, match="cap of 0 cannot be scored"):
         contacts.cap_table([], [1.0], [0])
