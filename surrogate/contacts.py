@@ -78,12 +78,18 @@ def contact_ranks(position: np.ndarray, radius: np.ndarray, kinematic: np.ndarra
     return np.concatenate(distances), np.concatenate(ranks)
 
 
+def scorable_cap(cap: int | None, limit: int = RANK_LIMIT) -> int | None:
+    """``cap`` itself where the ranks of :func:`contact_ranks` can score it (None, or 1 .. ``limit``)."""
+    if cap is not None and not 1 <= cap <= limit:
+        raise ValueError(f"a neighbour cap of {cap!r} cannot be scored: ranks are counted up to {limit}")
+    return cap
+
+
 def capped_misses(distances: np.ndarray, ranks: np.ndarray, connectivity_radius: float, cap: int | None,
                   limit: int = RANK_LIMIT) -> int:
     """How many directed contacts (:func:`contact_ranks`) a graph of radius ``connectivity_radius`` capped at
     ``cap`` senders per receiver (None: no cap) misses: distance >= R, or rank >= cap."""
-    if cap is not None and not 1 <= cap <= limit:
-        raise ValueError(f"a neighbour cap of {cap!r} cannot be scored: ranks are counted up to {limit}")
+    cap = scorable_cap(cap, limit)
     missed = ~(np.asarray(distances) < connectivity_radius)
     if cap is not None:
         missed |= np.asarray(ranks) >= cap
@@ -157,9 +163,7 @@ def cap_table(sims, radii: list[float], caps: list[int | None]) -> list[dict]:
     share, and the senders per moving receiver the capped graph keeps in the frames a graph is built on (all
     but the last; its self edge not counted; the graph's cost grows with it). Rows in the order radius, then cap."""
     from surrogate.neighbours import neighbour_counts
-    for cap in caps:
-        if cap is not None and not 1 <= cap <= RANK_LIMIT:
-            raise ValueError(f"a neighbour cap of {cap!r} cannot be scored: ranks are counted up to {RANK_LIMIT}")
+    caps = [scorable_cap(cap) for cap in caps]              # before the pass over the data
     distances, ranks = [], []
     senders = {(r, c): 0 for r in radii for c in caps}
     receivers = 0

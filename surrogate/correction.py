@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import torch
 
-from surrogate.graph import cell_list_pairs, choose_method, kdtree_pairs
+from surrogate.graph import radius_pairs
 
 SKIN = 0.5          # the Verlet list's skin s, in units of the largest radius (module docstring)
 
@@ -53,11 +53,7 @@ def overlap_pairs(position: torch.Tensor, radius: torch.Tensor, moving: torch.Te
                   reach: float | None = None) -> torch.Tensor:
     """[2, P] pairs, each once, at least one of them moving, whose centres are closer than ``reach``
     (by default 2 max(r), the farthest two particles can be apart and still overlap)."""
-    x = position.detach()
-    reach = 2 * float(radius.max()) if reach is None else reach
-    pairs = kdtree_pairs(x, reach) if choose_method(x) == "kdtree" else cell_list_pairs(x, reach)
-    moving = moving.to(pairs.device)
-    return pairs[:, moving.index_select(0, pairs[0]) | moving.index_select(0, pairs[1])]
+    return radius_pairs(position, 2 * float(radius.max()) if reach is None else reach, ~moving)
 
 
 def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor, allowed_overlap: float,

@@ -50,6 +50,14 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
                  *, method: Method = "auto") -> torch.Tensor:
     """``edge_index`` [2, E] (row 0 senders, row 1 receivers) of all pairs with distance < radius,
     on ``pos``'s device; ``method`` as the module docstring says."""
+    pairs = radius_pairs(pos, radius, kinematic, method=method)
+    return both_ways(pairs, len(pos), self_loops)
+
+
+def radius_pairs(pos: torch.Tensor | np.ndarray, radius: float, kinematic: torch.Tensor | np.ndarray | None = None,
+                 *, method: Method = "auto") -> torch.Tensor:
+    """[2, P] the pairs of the radius graph, each unordered pair once (no direction, no self edge), on
+    ``pos``'s device."""
     x = pos if isinstance(pos, torch.Tensor) else torch.from_numpy(np.asarray(pos))
     x = x.detach() if x.is_floating_point() else x.double()
     if method == "auto":
@@ -63,7 +71,7 @@ def radius_graph(pos: torch.Tensor | np.ndarray, radius: float,
     if kinematic is not None:
         kin = torch.as_tensor(kinematic, dtype=torch.bool).to(x.device)
         pairs = pairs[:, ~(kin.index_select(0, pairs[0]) & kin.index_select(0, pairs[1]))]
-    return both_ways(pairs, len(x), self_loops)
+    return pairs
 
 
 class CappedEdges(NamedTuple):
