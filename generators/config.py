@@ -177,7 +177,7 @@ def validate(config: dict) -> dict:
 
 
 def _check_semantics(config: dict) -> None:
-    from generators import scenes
+    from generators import property_test, scenes
     launch = config["launch"]
     if launch["launcher"] == "plain" and launch["processes"] > 1:
         raise ConfigError(f"config key 'launch.processes' = {launch['processes']} needs 'launch.launcher' = "
@@ -196,6 +196,7 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.engine' = {cfg['engine']!r}: the {name} scene runs in "
                               f"{', '.join(scene.engines)} for now")
         scene.check(cfg)
+        property_test.values(name, cfg)
     for name in BENCHMARKS:
         bench = config[name]
         if min(bench["protocols"]) < bench["model"]["history"]:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from generators import config, h5md, scenes
+from generators.scenes import shear
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
@@ -454,3 +455,33 @@ def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):
     assert stats["property_stats"]["normal_stress"]["log"] is True
     meteorite = json.loads((ci_results / "meteorite" / "dataset" / "stats.json").read_text())
     assert meteorite["property_names"] == [] and meteorite["kinematic_species"] == []
+
+
+def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci_results):
+    """Article Fig. 14: the DEM reruns differ from the test sim in the modulus alone, the stiffer soil is
+    compressed less by the same platen load, and property.csv compares the DEM's change with the model's."""
+    import pandas as pd
+
+    from generators import property_test
+    res = ci_results / "shear"
+    low, high = property_test.values("shear", config.load({"scale": "ci"})["shear"])
+    ids = list(pd.read_csv(res / "dataset" / "splits.csv").query("split == 'test'")["id"])
+    table = pd.read_csv(res / "property.csv")
+    assert list(table["sim"]) == [*ids, "all"] and set(table["property"]) == {"young"}
+    for sim in ids:
+        base = h5md.read(res / "sims" / f"{sim}.h5")
+        runs = [h5md.read(res / "property" / str(i) / "sims" / f"{sim}.h5") for i in (0, 1)]
+        for run, value in zip(runs, (low, high), strict=True):
+            column = run.property_names.index("young")
+            assert set(run.properties[:, column]) == {value}
+            assert run.parameters["normal_stress"] == base.parameters["normal_stress"]
+            assert np.array_equal(run.species, base.species) and np.array_equal(run.radius, base.radius)
+        platen = base.species == shear.PLATEN
+        soft, stiff = (run.position[0, platen, 2].mean() for run in runs)
+        assert stiff > soft                        # the same load presses the stiffer soil less far
+        row = table.set_index("sim").loc[sim]
+        dem = [run.position[-1, ~run.kinematic, 0].mean() for run in runs]
+        assert row["dem_delta"] == pytest.approx(dem[1] - dem[0], rel=1e-6, abs=1e-12)
+        assert np.isfinite(row["graphdem_delta"]) and row["chaos_delta"] >= 0
+    assert (res / "plots" / "property.png").stat().st_size > 10_000
+    assert (res / "logs" / "property_test.log").is_file() and (res / "benchmarks" / "property_test.tsv").is_file()

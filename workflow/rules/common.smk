@@ -8,6 +8,7 @@ from pathlib import Path
 
 from generators import config as gconfig
 from generators import locks as glocks
+from generators import property_test as gproperty
 from generators import report as greport
 from generators import engine as gengine
 from generators import launch as glaunch
@@ -40,6 +41,10 @@ CROSSCHECK_RUNS += [f"crosscheck/{s}/chaos" for s in SCENES]
 # The DEM ensemble (results/<scene>/ensemble/): the scene's test sims rerun by its configured engine from packings
 # perturbed by evaluate.ensemble_perturbation radii, scored beside Graph-DEM (the chaos floor).
 ENSEMBLE_RUNS = [f"{s}/ensemble" for s in SCENES]
+# The property test's reruns (results/<scene>/property/<i>/, article Fig. 14): the scene's test sims rerun by its
+# configured engine with one node property at its i-th value (evaluate.property_test; generators/property_test.py).
+PROPERTY_VALUES = {s: gproperty.values(s, CFG[s]) for s in SCENES}
+PROPERTY_RUNS = [f"{s}/property/{i}" for s in SCENES for i in range(len(PROPERTY_VALUES[s]))]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
@@ -49,13 +54,14 @@ SCALE_FOLDERS = set()
 
 wildcard_constraints:
     scene="|".join(SCENES),
-    run="|".join(SCENES + CROSSCHECK_RUNS + ENSEMBLE_RUNS),
+    run="|".join(SCENES + CROSSCHECK_RUNS + ENSEMBLE_RUNS + PROPERTY_RUNS),
     engine="|".join(ENGINES),
     bench="|".join(BENCHMARKS),
     name="|".join(SCENES + BENCHMARKS),
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
     seed=r"\d+",
+    value=r"\d+",
 
 
 def report_category(wildcards) -> str:
@@ -101,7 +107,8 @@ def scene_engine(wildcards) -> str:
 
 
 def run_scene(wildcards) -> str:
-    """The scene of a run (results/<scene>, results/<scene>/ensemble or results/crosscheck/<scene>/<engine>)."""
+    """The scene of a run (results/<scene>, results/<scene>/ensemble, results/<scene>/property/<i> or
+    results/crosscheck/<scene>/<engine>)."""
     parts = wildcards.run.split("/")
     return parts[1] if parts[0] == "crosscheck" else parts[0]
 
@@ -154,12 +161,16 @@ def _physics(scene: str, sim: str) -> dict:
 
 
 def sim_row_json(wildcards) -> str:
-    """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run)."""
-    row = {**_physics(run_scene(wildcards), wildcards.sim), "engine": run_engine(wildcards)}
+    """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run, one property at the
+    run's value in a property-test run)."""
+    scene = run_scene(wildcards)
+    row = {**_physics(scene, wildcards.sim), "engine": run_engine(wildcards)}
     if wildcards.run.endswith("/chaos"):
         row["perturbation"] = CFG["crosscheck"]["perturbation"]
     elif wildcards.run.endswith("/ensemble"):
-        row["perturbation"] = CFG[run_scene(wildcards)]["evaluate"]["ensemble_perturbation"]
+        row["perturbation"] = CFG[scene]["evaluate"]["ensemble_perturbation"]
+    elif wildcards.run in PROPERTY_RUNS:
+        row[CFG[scene]["evaluate"]["property_test"]["property"]] = PROPERTY_VALUES[scene][int(wildcards.run.split("/")[2])]
     return _json(row)
 
 
@@ -377,6 +388,33 @@ def ensemble_sims(wildcards) -> list[str]:
     if not is_scene(wildcards) or CFG[wildcards.name]["evaluate"]["ensemble_perturbation"] is None:
         return []
     return [f"results/{wildcards.name}/ensemble/sims/{i}.h5" for i in test_ids(wildcards.name)]
+
+
+def property_test_inputs(wildcards) -> dict[str, list[str]]:
+    """The property test's reruns and their rollouts (low value first), and the sims and DEM ensemble whose
+    difference is the chaos its signal stands beside (none without an ensemble)."""
+    scene, ids = wildcards.scene, test_ids(wildcards.scene)
+    if not PROPERTY_VALUES[scene]:
+        raise ValueError(f"the {scene} scene has no property test: set '{scene}.evaluate.property_test' "
+                         f"(docs/surrogate.md, Property test)")
+    runs = [f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))]
+    inputs = {"sims": [f"{run}/sims/{i}.h5" for run in runs for i in ids],
+              "rollouts": [f"{run}/rollouts/{i}.h5" for run in runs for i in ids]}
+    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
+        inputs["chaos"] = [f"results/{scene}/{where}/{i}.h5" for where in ("sims", "ensemble/sims") for i in ids]
+    return inputs
+
+
+def property_test_args(wildcards) -> list[str]:
+    """The runs, sims, property, K and tolerance of the property test (and the chaos' folders)."""
+    scene = wildcards.scene
+    test = CFG[scene]["evaluate"]["property_test"]
+    chaos = []
+    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
+        chaos = ["--sims-dir", f"results/{scene}/sims", "--ensemble", f"results/{scene}/ensemble/sims"]
+    return ["--runs", *(f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))),
+            "--sims", *test_ids(scene), "--property", test["property"],
+            "--history", str(history_length(wildcards)), "--tolerance", str(test["tolerance"]), *chaos]
 
 
 def evaluation_args(wildcards) -> list[str]:

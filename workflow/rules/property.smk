@@ -1,0 +1,47 @@
+# Stage property: the property-sensitivity test (article Fig. 14; docs/surrogate.md, Property test). Each test
+# sim is rerun by the DEM at the low and the high value of one node property (evaluate.property_test), all else
+# kept; the model rolls out both reruns; property.csv compares the change of the soil's mean x at the last frame,
+# DEM against Graph-DEM, beside the DEM's own chaos.
+rule property_rollout:
+    input:
+        checkpoint="results/{scene}/model/best.pt",
+        sim="results/{scene}/property/{value}/sims/{sim}.h5",
+    output:
+        "results/{scene}/property/{value}/rollouts/{sim}.h5",
+    params:
+        runtime=runtime_json,
+        device=device_arg,
+    threads: 1
+    resources:
+        gpus=job_gpus,
+    log:
+        "results/{scene}/logs/property/rollout_{value}_{sim}.log",
+    benchmark:
+        "results/{scene}/benchmarks/property/rollout_{value}_{sim}.tsv"
+    shell:
+        "graphdem rollout --checkpoint {input.checkpoint:q} --data {input.sim:q} "
+        "--out-dir results/{wildcards.scene}/property/{wildcards.value}/rollouts --threads {threads} "
+        "--runtime-json {params.runtime:q} {params.device:q} > {log} 2>&1"
+
+
+rule property_test:
+    input:
+        unpack(property_test_inputs),
+        checkpoint="results/{scene}/model/best.pt",
+    output:
+        table=report("results/{scene}/property.csv", caption="../report/property.rst",
+                     category=report_category, subcategory="property test",
+                     labels={"figure": "property.csv (download)", "scene": "{scene}"}),
+        plot=report("results/{scene}/plots/property.png", caption="../report/property.rst",
+                    category=report_category, subcategory="property test",
+                    labels={"figure": "property test (Fig. 14)", "scene": "{scene}"}),
+    params:
+        args=property_test_args,
+    threads: 1
+    log:
+        "results/{scene}/logs/property_test.log",
+    benchmark:
+        "results/{scene}/benchmarks/property_test.tsv"
+    shell:
+        "graphdem property-test --checkpoint {input.checkpoint:q} {params.args:q} --out {output.table:q} "
+        "--plot {output.plot:q} --title {wildcards.scene:q} > {log} 2>&1"
