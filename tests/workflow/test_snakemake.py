@@ -480,7 +480,7 @@ def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci
         soft, stiff = (run.position[0, platen, 2].mean() for run in runs)
         assert stiff > soft                        # the same load presses the stiffer soil less far
         row = table.set_index("sim").loc[sim]
-        dem = [run.position[-1, ~run.kinematic, 0].mean() for run in runs]
+        dem = [run.position[-1, ~run.kinematic, 0].astype(np.float64).mean() for run in runs]
         assert row["dem_delta"] == pytest.approx(dem[1] - dem[0], rel=1e-6, abs=1e-12)
         assert np.isfinite(row["graphdem_delta"]) and row["chaos_delta"] >= 0
     assert (res / "plots" / "property.png").stat().st_size > 10_000
