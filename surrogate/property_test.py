@@ -81,39 +81,40 @@ def read_pair(runs: tuple[Path, Path], sim: str, name: str, sha: str, history: i
     return Pair(sim, values[0], values[1], truths[0], truths[1], predictions[0], predictions[1])
 
 
-def score_pair(pair: Pair, history: int, chaos: np.ndarray | None = None,
+def compare(dem: float, graphdem: float, chaos: float, tolerance: float) -> dict:
+    """The comparison of one DEM change with Graph-DEM's: ratio, same sign, the signal against the chaos, and
+    whether it passes (same sign, ratio within 1 +- tolerance)."""
+    ratio = graphdem / dem if dem != 0 else float("nan")
+    same_sign = bool(np.sign(dem) == np.sign(graphdem) and dem != 0)
+    return {"dem_delta": dem, "graphdem_delta": graphdem, "ratio": ratio, "same_sign": same_sign,
+            "chaos_delta": chaos, "signal_to_chaos": abs(dem) / chaos if chaos > 0 else float("nan"),
+            "passes": same_sign and abs(ratio - 1.0) <= tolerance}
+
+
+def score_pair(pair: Pair, history: int, tolerance: float, chaos: np.ndarray | None = None,
                chaos_truth: np.ndarray | None = None) -> dict:
     """The row of one pair (module docstring); ``chaos`` and ``chaos_truth`` are the sim's DEM-ensemble rerun and
     the sim itself ([T, N, D] each), or None."""
     kinematic = pair.truth_low.kinematic
     truth_low, truth_high = mean_x(pair.truth_low.position, kinematic), mean_x(pair.truth_high.position, kinematic)
     pred_low, pred_high = mean_x(pair.predicted_low, kinematic), mean_x(pair.predicted_high, kinematic)
-    dem = float(truth_high[-1] - truth_low[-1])
-    graphdem = float(pred_high[-1] - pred_low[-1])
     chaos_delta = float("nan")
     if chaos is not None and chaos_truth is not None:
         chaos_delta = float(abs(mean_x(chaos, kinematic)[-1] - mean_x(chaos_truth, kinematic)[-1]))
+    result = compare(float(truth_high[-1] - truth_low[-1]), float(pred_high[-1] - pred_low[-1]), chaos_delta,
+                     tolerance)
     return {"sim": pair.sim, "value_low": pair.low, "value_high": pair.high, "frame": len(truth_low) - 1,
-            "history": history, "dem_delta": dem, "graphdem_delta": graphdem,
-            "ratio": graphdem / dem if dem != 0 else float("nan"),
-            "same_sign": bool(np.sign(dem) == np.sign(graphdem) and dem != 0),
-            "chaos_delta": chaos_delta, "signal_to_chaos": abs(dem) / chaos_delta if chaos_delta > 0 else float("nan"),
-            "motion": float(truth_low[-1] - truth_low[history - 1])}
+            "history": history, **result, "motion": float(truth_low[-1] - truth_low[history - 1])}
 
 
 def summary(rows: pd.DataFrame, tolerance: float) -> dict:
-    """The 'all' row: the Deltas averaged over the sims, their ratio, and how many sims pass (same sign and the
-    ratio within 1 +- tolerance)."""
-    dem, graphdem = float(rows["dem_delta"].mean()), float(rows["graphdem_delta"].mean())
-    passed = rows["same_sign"] & ((rows["ratio"] - 1.0).abs() <= tolerance)
-    return {"sim": "all", "value_low": rows["value_low"].iloc[0], "value_high": rows["value_high"].iloc[0],
-            "frame": int(rows["frame"].iloc[0]), "history": int(rows["history"].iloc[0]),
-            "dem_delta": dem, "graphdem_delta": graphdem, "ratio": graphdem / dem if dem != 0 else float("nan"),
-            "same_sign": bool(np.sign(dem) == np.sign(graphdem) and dem != 0),
-            "chaos_delta": float(rows["chaos_delta"].mean()),
-            "signal_to_chaos": abs(dem) / float(rows["chaos_delta"].mean()) if rows["chaos_delta"].mean() > 0
-            else float("nan"),
-            "motion": float(rows["motion"].mean()), "passed": f"{int(passed.sum())} of {len(rows)}"}
+    """The 'all' row: the Deltas averaged over the sims, their comparison, and how many sims pass."""
+    first = rows.iloc[0]
+    result = compare(float(rows["dem_delta"].mean()), float(rows["graphdem_delta"].mean()),
+                     float(rows["chaos_delta"].mean()), tolerance)
+    return {"sim": "all", "value_low": first["value_low"], "value_high": first["value_high"],
+            "frame": int(first["frame"]), "history": int(first["history"]), **result,
+            "motion": float(rows["motion"].mean()), "passes": f"{int(rows['passes'].sum())} of {len(rows)}"}
 
 
 def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: int, tolerance: float,
@@ -129,9 +130,11 @@ def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: 
         if chaos is not None:
             base = h5md.read(Path(chaos[0]) / f"{sim}.h5")
             member, truth = read_ensemble(Path(chaos[1]) / f"{sim}.h5", base), base.position
-        row = score_pair(pair, history, member, truth)
-        rows.append({**row, "passed": "yes" if row["same_sign"] and abs(row["ratio"] - 1.0) <= tolerance else "no"})
+        rows.append(score_pair(pair, history, tolerance, member, truth))
         pairs.append(pair)
     table = pd.DataFrame(rows)
     table = pd.concat([table, pd.DataFrame([summary(table, tolerance)])], ignore_index=True)
+    passes = table.pop("passes")
+    table.insert(table.columns.get_loc("motion") + 1, "passed",
+                 [p if isinstance(p, str) else ("yes" if p else "no") for p in passes])
     return table.assign(property=name, tolerance=tolerance, checkpoint_sha=sha), pairs

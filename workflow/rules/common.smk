@@ -390,6 +390,11 @@ def ensemble_sims(wildcards) -> list[str]:
     return [f"results/{wildcards.name}/ensemble/sims/{i}.h5" for i in test_ids(wildcards.name)]
 
 
+def _property_runs(scene: str) -> list[str]:
+    """The property test's run folders of ``scene``, low value first."""
+    return [f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))]
+
+
 def property_test_inputs(wildcards) -> dict[str, list[str]]:
     """The property test's reruns and their rollouts (low value first), and the sims and DEM ensemble whose
     difference is the chaos its signal stands beside (none without an ensemble)."""
@@ -397,7 +402,7 @@ def property_test_inputs(wildcards) -> dict[str, list[str]]:
     if not PROPERTY_VALUES[scene]:
         raise ValueError(f"the {scene} scene has no property test: set '{scene}.evaluate.property_test' "
                          f"(docs/surrogate.md, Property test)")
-    runs = [f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))]
+    runs = _property_runs(scene)
     inputs = {"sims": [f"{run}/sims/{i}.h5" for run in runs for i in ids],
               "rollouts": [f"{run}/rollouts/{i}.h5" for run in runs for i in ids]}
     if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
@@ -412,7 +417,7 @@ def property_test_args(wildcards) -> list[str]:
     chaos = []
     if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
         chaos = ["--sims-dir", f"results/{scene}/sims", "--ensemble", f"results/{scene}/ensemble/sims"]
-    return ["--runs", *(f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))),
+    return ["--runs", *_property_runs(scene),
             "--sims", *test_ids(scene), "--property", test["property"],
             "--history", str(history_length(wildcards)), "--tolerance", str(test["tolerance"]), *chaos]
 
