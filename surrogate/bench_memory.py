@@ -20,6 +20,7 @@ gives per N the edges, the edges per particle, the peak memory the step allocate
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import time
 from pathlib import Path
@@ -121,15 +122,19 @@ def sweep(simulator: LearnedSimulator, start: int, max_particles: int, refine: i
     def attempt(n: int) -> bool:
         try:
             rows.append(training_step(simulator, n, neighbours, seed))
-            return True
+            fits = True
         except RuntimeError as exc:          # torch.cuda.OutOfMemoryError is one
             if not _out_of_memory(exc):
                 raise
-            simulator.zero_grad(set_to_none=True)
-            if simulator.lower.device.type == "cuda":
-                torch.cuda.empty_cache()
             rows.append({"particles": n, "fits": False})
-            return False
+            fits = False
+        # Outside the handler: the exception's traceback (and the failed step's tensors it holds) is gone, so
+        # the next step starts from the model's own memory alone, not from what the last one left cached.
+        simulator.zero_grad(set_to_none=True)
+        if simulator.lower.device.type == "cuda":
+            gc.collect()
+            torch.cuda.empty_cache()
+        return fits
 
     fitted, failed, n = 0, None, start
     while n <= max_particles:
