@@ -198,7 +198,7 @@ def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> P
     """Article Fig. 14 and its measure: the first sim's moving particles at the last frame (x against the
     vertical axis) with the low property value in red and the high one in grey on top, truth and Graph-DEM
     side by side, each run's mean x marked; then the Delta of mean x (high - low) per sim, DEM against
-    Graph-DEM, with the DEM's own chaos as a band."""
+    Graph-DEM and constant velocity, with the DEM's own chaos as error bars."""
     pair = pairs[0]
     moving = ~np.asarray(pair.truth_low.kinematic, bool)
     vertical = pair.truth_low.dim - 1
@@ -217,11 +217,12 @@ def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> P
     rows = table[table["sim"] != "all"]
     at = np.arange(len(rows))
     bars = axes[2]
-    bars.bar(at - 0.2, rows["dem_delta"] * 1e6, width=0.4, label="DEM")
-    bars.bar(at + 0.2, rows["graphdem_delta"] * 1e6, width=0.4, label="Graph-DEM")
+    bars.bar(at - 0.27, rows["dem_delta"] * 1e6, width=0.27, label="DEM")
+    bars.bar(at, rows["graphdem_delta"] * 1e6, width=0.27, label="Graph-DEM")
+    bars.bar(at + 0.27, rows["cv_delta"] * 1e6, width=0.27, color="0.7", label="constant velocity")
     if rows["chaos_delta"].notna().any():
         chaos = rows["chaos_delta"].to_numpy() * 1e6
-        bars.errorbar(at - 0.2, rows["dem_delta"] * 1e6, yerr=chaos, fmt="none", color="k", capsize=3,
+        bars.errorbar(at - 0.27, rows["dem_delta"] * 1e6, yerr=chaos, fmt="none", color="k", capsize=3,
                       label="DEM chaos (+-)")
     bars.axhline(0.0, color="k", lw=0.6)
     bars.set_xticks(at, rows["sim"], rotation=30, fontsize=7)

@@ -80,6 +80,32 @@ def test_a_wrong_sign_or_a_change_far_off_fails_the_sim_and_the_summary_counts(t
     assert everything["graphdem_delta"] == pytest.approx((-4e-6 + 8.8e-6 + 16e-6) / 3, abs=UM)
 
 
+def test_constant_velocity_is_scored_by_the_same_rule(tmp_path):
+    # s_0: the stiffer run is faster from frame 0 on, so the given frames show it and the straight-line
+    # extrapolation reproduces the DEM's change exactly (it passes: the test says little there). s_1: both runs
+    # move alike through the given frames (0, 1) and the stiffer one gains 2 um per frame only from frame 2: the
+    # extrapolation sees no change and fails, while the DEM's change is 6 um.
+    low, high = tmp_path / "low", tmp_path / "high"
+    write_run(low, "s_0", 1e7, 0.0, 0.0)
+    write_run(high, "s_0", 8e7, 2e-6, 2e-6)
+    write_run(low, "s_1", 1e7, 0.0, 0.0)
+    late = trajectory(0.0, 8e7)
+    late.position[2:, :6, 0] += 2e-6 * np.arange(1, 4)[:, None]
+    h5md.write(high / "sims" / "s_1.h5", late)
+    h5md.write(high / "rollouts" / "s_1.h5", trajectory(1.5e-6, 8e7, parameters={
+        "rollout_checkpoint_sha": SHA, "rollout_history": K}))
+    table, _ = property_test.run((low, high), ["s_0", "s_1"], "young", SHA, K, 0.25)
+    by_sim = table.set_index("sim")
+    assert by_sim.at["s_0", "cv_delta"] == pytest.approx(8e-6, abs=UM)
+    assert by_sim.at["s_0", "cv_ratio"] == pytest.approx(1.0, abs=0.01) and by_sim.at["s_0", "cv_passed"] == "yes"
+    assert by_sim.at["s_1", "dem_delta"] == pytest.approx(6e-6, abs=UM)
+    assert abs(by_sim.at["s_1", "cv_delta"]) < UM and by_sim.at["s_1", "cv_passed"] == "no"
+    assert by_sim.at["s_1", "passed"] == "yes"                        # the model's 6 um: ratio 1
+    assert by_sim.at["all", "cv_passed"] == "1 of 2" and by_sim.at["all", "passed"] == "2 of 2"
+    assert by_sim.at["all", "cv_delta"] == pytest.approx(4e-6, abs=UM)
+    assert list(table.columns).index("passed") == list(table.columns).index("motion") + 1
+
+
 def test_the_dem_chaos_is_the_change_between_a_sim_and_its_ensemble_rerun(tmp_path):
     low, high = tmp_path / "low", tmp_path / "high"
     write_run(low, "s_0", 1e7, 0.0, 0.0)
