@@ -147,9 +147,10 @@ def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: 
         pairs.append(pair)
     table = pd.DataFrame(rows)
     table = pd.concat([table, pd.DataFrame([summary(table, tolerance)])], ignore_index=True)
-    for flag, column in (("passes", "passed"), ("cv_passes", "cv_passed")):
-        passes = table.pop(flag)
-        table.insert(len(table.columns), column, [p if isinstance(p, str) else ("yes" if p else "no")
-                                                  for p in passes])
-    table.insert(table.columns.get_loc("motion") + 1, "passed", table.pop("passed"))
+    def yes_no(passes: pd.Series) -> list[str]:
+        return [p if isinstance(p, str) else ("yes" if p else "no") for p in passes]
+
+    passed = yes_no(table.pop("passes"))
+    table.insert(table.columns.get_loc("motion") + 1, "passed", passed)
+    table["cv_passed"] = yes_no(table.pop("cv_passes"))
     return table.assign(property=name, tolerance=tolerance, checkpoint_sha=sha), pairs
