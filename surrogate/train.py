@@ -155,7 +155,7 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
                generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0,
                pushforward_steps: int = 1, *, world: distributed.World | None = None,
                model: torch.nn.Module | None = None, precision: str = "float32",
-               counts: dict | None = None) -> torch.Tensor:
+               counts: dict | None = None, pushforward_gradient: bool = False) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
     With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
@@ -165,6 +165,13 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     frame. m is drawn uniformly from 1 .. ``pushforward_steps`` (at most the frames there are before
     the window). The model so learns to correct the errors it makes itself in a rollout, at the cost
     of m extra forward passes per such sample.
+
+    With ``pushforward_gradient`` the pushed steps keep their gradient: a multi-step loss. Each pushed step's
+    acceleration error, taken against the true next frame (the target rule of the last step, so each term is
+    that step's position error in normalised units), joins the loss, and the gradient of every later term
+    flows back through the positions the earlier steps predicted (backpropagation through the rollout).
+    The loss is the mean over all of a batch's step terms. Each pushed step then costs a backward pass too.
+    One process only (a DistributedDataParallel model takes one forward pass per backward pass).
 
     With a multi-process ``world``, this process computes its share of the samples
     (:func:`surrogate.distributed.share`) and returns their squared errors summed, divided by the
@@ -189,12 +196,21 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     drawn = _draws(simulator, sims, batch, noise_std, generator, mirror, pushforward, pushforward_steps, keep)
     windows = [sample.window for sample in drawn]
     radius, cap = simulator.radius, simulator.max_neighbours
+    if pushforward_gradient and world.distributed:
+        raise ValueError("train.pushforward_gradient: the multi-step loss runs in one training process, "
+                         f"got {world.size} (set launch.processes: 1 or pushforward_gradient: false)")
+    step_errors = []                                   # the pushed steps' squared errors (with the gradient)
     with devices.autocast(simulator.lower.device, precision):
         for j in range(max(len(sample.truth) for sample in drawn)):
             which = [i for i, sample in enumerate(drawn) if len(sample.truth) > j]
             earlier = stack_graphs([drawn[i].graph(windows[i], radius, cap) for i in which])
-            with torch.no_grad():
-                predicted = simulator.step(earlier, torch.cat([drawn[i].truth[j] for i in which]))
+            truth = torch.cat([drawn[i].truth[j] for i in which])
+            if pushforward_gradient:
+                predicted, squared = _graded_step(simulator, model, earlier, truth)
+                step_errors.append(squared)
+            else:
+                with torch.no_grad():
+                    predicted = simulator.step(earlier, truth)
             sizes = [windows[i].shape[1] for i in which]
             for i, frame in zip(which, predicted.split(sizes), strict=True):
                 windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
@@ -210,10 +226,25 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
         moving = (~graph.kinematic).nonzero().squeeze(1)
         prediction = model(graph, decode=moving)
     squared = (prediction.float() - torch.cat(targets)[index[moving]]) ** 2
+    if step_errors:
+        return torch.cat([*step_errors, squared]).mean()
     if not world.distributed:
         return squared.mean()
     components = sum(int((~sims[s].kinematic).sum()) for s, _ in batch) * squared.shape[-1]
     return squared.sum() * (weight * world.size / components)
+
+
+def _graded_step(simulator: LearnedSimulator, model: torch.nn.Module, graph, truth: torch.Tensor
+                 ) -> tuple[torch.Tensor, torch.Tensor]:
+    """One pushed step with its gradient: the next positions (``truth``'s for the unpredicted particles) and the
+    squared error of the moving particles' normalised acceleration against the one reaching ``truth``."""
+    reduced, index = prune_isolated(graph)
+    moving = (~reduced.kinematic).nonzero().squeeze(1)
+    acceleration = model(reduced, decode=moving)
+    window = reduced.window[:, moving]
+    squared = (acceleration.float() - simulator.target(window, truth[index[moving]])) ** 2
+    nxt = truth.index_put((index[moving],), simulator.integrate(window, acceleration).to(truth.dtype))
+    return nxt, squared
 
 
 def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
@@ -371,7 +402,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                               _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
                               pushforward=float(train_cfg["pushforward"]),
                               pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
-                              precision=precision, counts=counts)
+                              precision=precision, counts=counts,
+                              pushforward_gradient=bool(train_cfg.get("pushforward_gradient", False)))
             value = distributed.mean(loss, world)          # the batch's loss, the same on every process
             if counts is not None:                         # summed over the processes' shares of the batch
                 summed = distributed.total(torch.tensor([counts["capped"], counts["dropped"], counts["edges"]],

@@ -8,6 +8,7 @@ import torch
 
 from surrogate import checkpoint, devices, train
 from surrogate.samples import load_sim
+from surrogate.simulator import build_graph
 
 pytestmark = pytest.mark.engine
 
@@ -111,15 +112,20 @@ def test_mirror_reflects_positions_and_the_target_acceleration_in_x(tiny_dataset
     assert torch.isfinite(mirrored) and not torch.isclose(plain, mirrored)
 
 
-def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
-    """At p = 1 (no noise) the last input frame is the one-step prediction from the window one frame
-    earlier and the target is the true next frame; a sample with no earlier frame is left as it is."""
-    from surrogate.simulator import LearnedSimulator, build_graph
+def _untrained_simulator_and_first_train_sim(tiny_dataset):
+    """A seed-0 untrained simulator of the tiny dataset's model and its first train sim."""
+    from surrogate.simulator import LearnedSimulator
     stats = json.loads(tiny_dataset["stats_json"])
     torch.manual_seed(0)
     simulator = LearnedSimulator(stats, tiny_dataset["model"])
     split = tiny_dataset["split_table"]
-    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    return simulator, load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+
+
+def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
+    """At p = 1 (no noise) the last input frame is the one-step prediction from the window one frame
+    earlier and the target is the true next frame; a sample with no earlier frame is left as it is."""
+    simulator, sim = _untrained_simulator_and_first_train_sim(tiny_dataset)
     k, t = simulator.history, simulator.history + 1
     earlier = sim.position[t - k:t]
     with torch.no_grad():
@@ -140,12 +146,7 @@ def test_multi_step_pushforward_feeds_m_predicted_frames(tiny_dataset):
     """With pushforward_steps = 2 a pushed sample's history ends in 1 or 2 of the model's own frames
     (each drawn over seeds), each predicted from the window before it; where only one frame precedes
     the window, m is capped at 1."""
-    from surrogate.simulator import LearnedSimulator, build_graph
-    stats = json.loads(tiny_dataset["stats_json"])
-    torch.manual_seed(0)
-    simulator = LearnedSimulator(stats, tiny_dataset["model"])
-    split = tiny_dataset["split_table"]
-    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    simulator, sim = _untrained_simulator_and_first_train_sim(tiny_dataset)
     k = simulator.history
 
     def pushed_loss(t, m):
@@ -172,6 +173,42 @@ def test_multi_step_pushforward_feeds_m_predicted_frames(tiny_dataset):
     capped = train.batch_loss(simulator, [sim], [(0, k)], 0.0, torch.Generator().manual_seed(0),
                               pushforward=1.0, pushforward_steps=5)
     torch.testing.assert_close(capped, pushed_loss(k, 1))
+
+
+def test_pushforward_gradient_is_the_multi_step_loss_through_the_rollout(tiny_dataset):
+    """With pushforward_gradient (p = 1, M = 1, no noise) the loss is the mean of the pushed step's and the last
+    step's squared errors, each against the true next frame, and its gradient flows through the predicted frame:
+    it differs from the gradient of the same terms with that frame detached. Off, the loss is pushforward's.
+    Several training processes are refused by name."""
+    from surrogate.distributed import World
+    simulator, sim = _untrained_simulator_and_first_train_sim(tiny_dataset)
+    k, t = simulator.history, simulator.history + 1
+    moving = ~sim.kinematic
+
+    def hand_made(detach):
+        earlier = sim.position[t - k:t]
+        first = simulator(build_graph(earlier, sim.types, sim.kinematic, simulator.radius))
+        first_error = ((first - simulator.target(earlier, sim.position[t])) ** 2)[moving]
+        predicted = sim.position[t].clone()
+        predicted[moving] = simulator.integrate(earlier, first)[moving]
+        if detach:
+            predicted = predicted.detach()
+        window = torch.cat([sim.position[t - k + 1:t], predicted.unsqueeze(0)])
+        last = simulator(build_graph(window, sim.types, sim.kinematic, simulator.radius))
+        last_error = ((last - simulator.target(window, sim.position[t + 1])) ** 2)[moving]
+        return torch.cat([first_error, last_error]).mean()
+
+    def loss(gradient, world=None):
+        return train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0), pushforward=1.0,
+                                pushforward_gradient=gradient, world=world)
+
+    got = loss(True)
+    torch.testing.assert_close(got, hand_made(False))
+    torch.testing.assert_close(_gradient(simulator, loss(True)), _gradient(simulator, hand_made(False)))
+    assert not torch.allclose(_gradient(simulator, hand_made(False)), _gradient(simulator, hand_made(True)))
+    assert not torch.isclose(got, loss(False))                      # off: only the last step's error
+    with pytest.raises(ValueError, match="pushforward_gradient.*one training process"):
+        loss(True, World(0, 2))
 
 
 def test_weight_average_follows_the_ema_formula():
