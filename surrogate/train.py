@@ -39,7 +39,7 @@ from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim, load_sim, sample_index
-from surrogate.simulator import LearnedSimulator, build_graph, prune_isolated, stack_graphs
+from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
 
@@ -234,7 +234,7 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     return squared.sum() * (weight * world.size / components)
 
 
-def _graded_step(simulator: LearnedSimulator, model: torch.nn.Module, graph, truth: torch.Tensor
+def _graded_step(simulator: LearnedSimulator, model: torch.nn.Module, graph: Graph, truth: torch.Tensor
                  ) -> tuple[torch.Tensor, torch.Tensor]:
     """One pushed step with its gradient: the next positions (``truth``'s for the unpredicted particles) and the
     squared error of the moving particles' normalised acceleration against the one reaching ``truth``."""

@@ -39,6 +39,20 @@ def test_out_of_range_names_key_and_bounds():
         config.load({"slide": {"restitution": 1.5}})
 
 
+def test_pushforward_gradient_is_an_optional_boolean_absent_by_default():
+    """Absent from every default train section (so no trained model's settings change), accepted as a boolean,
+    refused by name otherwise."""
+    defaults = config.load()
+    trained = {name: section["train"] for name, section in defaults.items()
+               if isinstance(section, dict) and isinstance(section.get("train"), dict)}
+    assert {"slide", "meteorite", "shear", "slide_samer", "slide_small"} <= set(trained)
+    assert not any("pushforward_gradient" in train for train in trained.values())
+    assert config.load({"slide_samer": {"train": {"pushforward_gradient": True}}})["slide_samer"]["train"][
+        "pushforward_gradient"] is True
+    with pytest.raises(config.ConfigError, match=r"slide_samer\.train\.pushforward_gradient.*'type': 'boolean'"):
+        config.load({"slide_samer": {"train": {"pushforward_gradient": 2}}})
+
+
 def test_contact_correction_is_null_or_its_two_keys():
     defaults = config.load()
     for scene in ("slide", "meteorite"):                  # chosen on each scene's valid split (docs/surrogate.md)
