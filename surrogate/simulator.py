@@ -173,12 +173,18 @@ def advance(window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
     return window[-1] + (window[-1] - window[-2]) + acceleration
 
 
+def moving_acceleration(model: nn.Module, graph: Graph) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``model``'s prediction for the moving particles of the pruned graph (:func:`prune_isolated`): their indices
+    in ``graph``, their window ``[K, M, D]`` and their normalised acceleration ``[M, D]``."""
+    reduced, index = prune_isolated(graph)
+    moving = (~reduced.kinematic).nonzero().squeeze(1)
+    return index[moving], reduced.window[:, moving], model(reduced, decode=moving)
+
+
 def next_frame(model: nn.Module, graph: Graph, kinematic_next: torch.Tensor) -> torch.Tensor:
     """:meth:`LearnedSimulator.step` of ``model``, a simulator or an ensemble: its ``integrate`` applied to its
     prediction for the moving particles of the pruned graph; ``kinematic_next`` for the rest."""
-    reduced, index = prune_isolated(graph)
-    moving = (~reduced.kinematic).nonzero().squeeze(1)
-    predicted = model.integrate(reduced.window[:, moving], model(reduced, decode=moving))
+    where, window, acceleration = moving_acceleration(model, graph)
     nxt = kinematic_next.clone()
-    nxt[index[moving]] = predicted.to(nxt.dtype)
+    nxt[where] = model.integrate(window, acceleration).to(nxt.dtype)
     return nxt

@@ -39,7 +39,7 @@ from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim, load_sim, sample_index
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated, stack_graphs
+from surrogate.simulator import Graph, LearnedSimulator, build_graph, moving_acceleration, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
 
@@ -238,12 +238,9 @@ def _graded_step(simulator: LearnedSimulator, model: torch.nn.Module, graph: Gra
                  ) -> tuple[torch.Tensor, torch.Tensor]:
     """One pushed step with its gradient: the next positions (``truth``'s for the unpredicted particles) and the
     squared error of the moving particles' normalised acceleration against the one reaching ``truth``."""
-    reduced, index = prune_isolated(graph)
-    moving = (~reduced.kinematic).nonzero().squeeze(1)
-    acceleration = model(reduced, decode=moving)
-    window = reduced.window[:, moving]
-    squared = (acceleration.float() - simulator.target(window, truth[index[moving]])) ** 2
-    nxt = truth.index_put((index[moving],), simulator.integrate(window, acceleration).to(truth.dtype))
+    where, window, acceleration = moving_acceleration(model, graph)
+    squared = (acceleration.float() - simulator.target(window, truth[where])) ** 2
+    nxt = truth.index_put((where,), simulator.integrate(window, acceleration).to(truth.dtype))
     return nxt, squared
 
 
