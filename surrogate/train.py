@@ -11,6 +11,8 @@ Files in the output folder:
   cuda:N) and ``device_name`` (the GPU's or the CPU's model; :func:`surrogate.devices.name`); with the
   model's neighbour cap ``max_neighbours``, also the receivers it capped and the edges it dropped in the
   epoch's training graphs, and their edges before the cap;
+* ``snapshot_<c>.pt`` (with ``lr_cycles`` > 1): the validated weights at the end of learning-rate cycle c, in
+  best.pt's format, for a snapshot ensemble (``graphdem evaluate --checkpoint snapshot_*.pt``);
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
   best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
   A run that finds an unfinished ``last.pt`` with the same model, data and training settings
@@ -73,11 +75,31 @@ def _generator(*seeds: int) -> torch.Generator:
 
 def learning_rate(train_cfg: dict, step: int, total_steps: int) -> float:
     """Adam's learning rate at ``step``: constant ``lr`` (the article), or an exponential decay from
-    ``lr`` to ``lr_final`` over the planned steps when ``lr_final`` is set."""
+    ``lr`` to ``lr_final`` over the planned steps when ``lr_final`` is set. With ``lr_cycles`` = C (optional,
+    absent: 1) the decay restarts: C equal cycles, each decaying from ``lr`` to ``lr_final`` over its
+    ``total_steps / C`` steps (a warm restart, Loshchilov & Hutter 2017, with this schedule's exponential shape)."""
     lr, final = float(train_cfg["lr"]), train_cfg.get("lr_final")
     if final is None:
         return lr
-    return lr * (float(final) / lr) ** min(step / max(total_steps, 1), 1.0)
+    cycle = total_steps / int(train_cfg.get("lr_cycles", 1))        # steps per cycle
+    position = step % cycle if step < total_steps else cycle        # past the planned steps: the final rate
+    return lr * (float(final) / lr) ** min(position / max(cycle, 1), 1.0)
+
+
+def snapshot_epochs(train_cfg: dict) -> list[int]:
+    """The epochs (1-based) that end a learning-rate cycle, where a run with ``lr_cycles`` > 1 keeps a snapshot of
+    its validated weights (``snapshot_<c>.pt``, for a snapshot ensemble); none with one cycle. The cycles must end
+    at epoch boundaries and need a decay to restart: a ValueError names the keys otherwise."""
+    cycles, epochs = int(train_cfg.get("lr_cycles", 1)), int(train_cfg["epochs"])
+    if cycles == 1:
+        return []
+    if train_cfg.get("lr_final") is None:
+        raise ValueError(f"train.lr_cycles = {cycles} restarts the learning-rate decay, but train.lr_final is null "
+                         f"(a constant rate): set lr_final, or lr_cycles: 1")
+    if epochs % cycles:
+        raise ValueError(f"train.lr_cycles = {cycles} must divide train.epochs = {epochs}, so that every cycle "
+                         f"ends with an epoch and its validated weights")
+    return [epochs // cycles * (c + 1) for c in range(cycles)]
 
 
 def ema_update(average: dict[str, torch.Tensor], model: torch.nn.Module, decay: float, step: int) -> None:
@@ -287,6 +309,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
            fresh: bool, max_steps: int | None, progress: bool, world: distributed.World,
            device: torch.device) -> dict:
     torch.set_num_threads(max(1, int(threads) // world.local_size))
+    snapshots = snapshot_epochs(train_cfg)             # a bad cycle count fails before any data is read
     progress = progress and world.main
     out_dir.mkdir(parents=True, exist_ok=True)
     stats = json.loads(stats_path.read_text())
@@ -442,6 +465,11 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         if world.main:
             best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
                                       optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
+            if state["epoch"] in snapshots:            # a cycle ended: keep its validated weights
+                checkpoint.save(out_dir / f"snapshot_{snapshots.index(state['epoch']) + 1}.pt", {
+                    "model": {k: v.detach().to("cpu", copy=True) for k, v in validator.state_dict().items()},
+                    "json": {"model": model_cfg, "train": train_cfg, "stats": stats, "epoch": state["epoch"],
+                             "valid_rollout_mse": state["history"][-1][3], "step": state["step"]}})
             save_outputs()      # outputs first: a kill in between never leaves a finished state without them
             save_last()
         state = distributed.from_main(state, world)    # the others wait here for rank 0's validation

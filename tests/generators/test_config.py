@@ -53,6 +53,17 @@ def test_pushforward_gradient_is_an_optional_boolean_absent_by_default():
         config.load({"slide_samer": {"train": {"pushforward_gradient": 2}}})
 
 
+def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
+    """Absent from every default train section (one decay, no trained model's settings change), refused by name
+    below 1."""
+    defaults = config.load()
+    assert not any("lr_cycles" in section["train"] for section in defaults.values()
+                   if isinstance(section, dict) and isinstance(section.get("train"), dict))
+    assert config.load({"slide_samer": {"train": {"lr_cycles": 3}}})["slide_samer"]["train"]["lr_cycles"] == 3
+    with pytest.raises(config.ConfigError, match=r"slide_samer\.train\.lr_cycles.*'minimum': 1"):
+        config.load({"slide_samer": {"train": {"lr_cycles": 0}}})
+
+
 def test_contact_correction_is_null_or_its_two_keys():
     defaults = config.load()
     for scene in ("slide", "meteorite"):                  # chosen on each scene's valid split (docs/surrogate.md)

@@ -236,6 +236,53 @@ def test_run_with_pushforward_and_weight_average_resumes_exactly(tiny_dataset, t
     assert not all(torch.equal(last["model"][k], last["average_model"][k]) for k in wa)   # the average is kept apart
 
 
+def test_learning_rate_cycles_restart_the_same_decay():
+    """lr_cycles = 3 over 90 steps: three copies of the one-cycle decay over 30 steps, each from lr towards lr_final;
+    absent, the one decay over all steps; past the planned steps, the final rate."""
+    one = {"lr": 1e-3, "lr_final": 1e-5}
+    three = {**one, "lr_cycles": 3}
+    for step in range(30):
+        expected = 1e-3 * (1e-5 / 1e-3) ** (step / 30)
+        for cycle in range(3):
+            assert train.learning_rate(three, cycle * 30 + step, 90) == pytest.approx(expected, rel=1e-12)
+    assert [train.learning_rate(one, s, 90) for s in range(90)] == \
+        [train.learning_rate({**one, "lr_cycles": 1}, s, 90) for s in range(90)]
+    assert train.learning_rate(one, 45, 90) == pytest.approx(1e-4)                  # halfway in log: sqrt(1e-3 1e-5)
+    assert train.learning_rate(three, 90, 90) == train.learning_rate(three, 500, 90) == pytest.approx(1e-5)
+    assert train.learning_rate({"lr": 1e-3, "lr_final": None, "lr_cycles": 3}, 10, 90) == 1e-3
+
+
+def test_snapshot_epochs_end_the_cycles_and_bad_cycle_counts_are_named():
+    assert train.snapshot_epochs({"epochs": 18, "lr_final": 3e-5, "lr_cycles": 3}) == [6, 12, 18]
+    assert train.snapshot_epochs({"epochs": 18, "lr_final": 3e-5}) == []
+    with pytest.raises(ValueError, match=r"lr_cycles = 4 must divide train.epochs = 18"):
+        train.snapshot_epochs({"epochs": 18, "lr_final": 3e-5, "lr_cycles": 4})
+    with pytest.raises(ValueError, match=r"lr_cycles = 3 .*lr_final is null"):
+        train.snapshot_epochs({"epochs": 18, "lr_final": None, "lr_cycles": 3})
+
+
+def test_cyclic_run_keeps_a_snapshot_per_cycle_and_restarts_the_rate(tiny_dataset, tmp_path):
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "epochs": 4, "patience": 4, "lr_final": 1e-5,
+                                      "lr_cycles": 2, "ema_decay": 0.9}}
+    run(tiny, tmp_path)
+    history = pd.read_csv(tmp_path / "history.csv")
+    # the rate of each epoch's last step: low at each cycle's end, high again after the restart
+    lr = list(history["lr"])
+    assert lr[1] < lr[0] and lr[2] > 5 * lr[1] and lr[2] == pytest.approx(lr[0]) and lr[3] == pytest.approx(lr[1])
+    assert sorted(p.name for p in tmp_path.glob("snapshot_*.pt")) == ["snapshot_1.pt", "snapshot_2.pt"]
+    last = checkpoint.load(tmp_path / "last.pt")
+    for c, epoch in ((1, 2), (2, 4)):
+        snap = checkpoint.load(tmp_path / f"snapshot_{c}.pt")
+        assert snap["json"]["epoch"] == epoch
+        assert snap["json"]["valid_rollout_mse"] == pytest.approx(history["valid_rollout_mse"].iloc[epoch - 1])
+    # the last cycle's snapshot is the run's final validated weights: the weight average
+    final = checkpoint.load(tmp_path / "snapshot_2.pt")["model"]
+    assert all(torch.equal(final[k], last["average_model"][k].cpu()) for k in final)
+    with pytest.raises(ValueError, match="must divide train.epochs = 4"):
+        run({**tiny, "train": {**tiny["train"], "lr_cycles": 3}}, tmp_path / "bad")
+    assert not (tmp_path / "bad" / "history.csv").exists()
+
+
 def _gradient(simulator, loss):
     simulator.zero_grad(set_to_none=True)
     loss.backward()
