@@ -49,6 +49,18 @@ def save(path: Path, payload: dict) -> None:
 def load(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
     """The checkpoint's tensors on ``map_location`` (``meta``: shapes and dtypes only, no data read into
     memory) and its JSON metadata, checked to be a Graph-DEM checkpoint's."""
+    data = read(path, map_location)
+    meta = data["json"]
+    if not (isinstance(meta, dict) and all(isinstance(meta.get(k), dict) for k in ("stats", "model"))):
+        raise CheckpointError(f"{path}: its metadata lacks the 'stats' and 'model' of a Graph-DEM checkpoint")
+    if not isinstance(data["model"], dict):
+        raise CheckpointError(f"{path}: its 'model' entry is not a state dict of tensors")
+    return data
+
+
+def read(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
+    """A file written by :func:`save`: its tensors on ``map_location`` and its JSON metadata (``json``), read with
+    ``weights_only=True`` (no code runs); any model's, not only Graph-DEM's."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint")
@@ -63,11 +75,6 @@ def load(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
         data["json"] = json.loads(data["json"])
     except (TypeError, json.JSONDecodeError) as exc:
         raise CheckpointError(f"{path}: its 'json' entry is not JSON text: {exc}") from exc
-    meta = data["json"]
-    if not (isinstance(meta, dict) and all(isinstance(meta.get(k), dict) for k in ("stats", "model"))):
-        raise CheckpointError(f"{path}: its metadata lacks the 'stats' and 'model' of a Graph-DEM checkpoint")
-    if not isinstance(data["model"], dict):
-        raise CheckpointError(f"{path}: its 'model' entry is not a state dict of tensors")
     return data
 
 

@@ -234,3 +234,32 @@ def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> P
         fig.savefig(tmp, dpi=130)
     plt.close(fig)
     return Path(path)
+
+
+def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, title: str) -> Path:
+    """The shear stress against the shear displacement, one panel per test sim: the DEM's observable, the readout
+    on the DEM's frames, on Graph-DEM's rollout and on constant velocity, and the DEM ensemble's observable; the
+    given frames shaded (surrogate.stress_test)."""
+    styles = {"readout": ("readout on DEM frames", "0.45", "--"), "graphdem": ("Graph-DEM", "tab:blue", "-"),
+              "cv": ("constant velocity", "tab:orange", "-"), "ensemble": ("DEM ensemble", "tab:green", ":")}
+    fig, axes = plt.subplots(1, len(curves), figsize=(3.6 * len(curves), 3.4), squeeze=False, sharey=True)
+    for ax, curve in zip(axes[0], curves, strict=True):
+        mm = 1e3 * curve.displacement
+        ax.axvspan(mm[0], mm[history - 1], color="0.9", lw=0)
+        ax.plot(mm, 1e-3 * curve.dem, color="black", lw=2, label="DEM")
+        for name, (label, colour, line) in styles.items():
+            if np.isfinite(curve.predicted[name]).any():
+                ax.plot(mm, 1e-3 * curve.predicted[name], color=colour, ls=line, label=label)
+        row = table[table["sim"] == curve.sim].iloc[0]
+        ax.set_title(f"{curve.sim}: {row['normal_stress'] / 1e3:.3g} kPa, E {row['young']:.2g} Pa\n"
+                     f"peak: Graph-DEM {100 * row['graphdem_error']:+.0f} %", fontsize=8)
+        ax.set_xlabel("shear displacement (mm)")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("shear stress (kPa)")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130)
+    plt.close(fig)
+    return Path(path)

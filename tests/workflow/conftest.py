@@ -1,5 +1,5 @@
 """One ci-scale run of the slide, meteorite and shear scenes (the default ci config, with the shear's property
-test) and of the cross-check
+test and stress test) and of the cross-check
 of all four scenes in LAMMPS and YADE (with the slide's and the shear's transfer scores), shared by the
 workflow tests; two engine jobs run side by side under -c2."""
 
@@ -17,7 +17,7 @@ SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 def ci_results(tmp_path_factory) -> Path:
     wd = tmp_path_factory.mktemp("ci_scenes")
     targets = [f"results/{scene}/metrics.csv" for scene in ("meteorite", "shear", "slide")]
-    targets += ["results/shear/property.csv", "results/crosscheck.csv",
+    targets += ["results/shear/property.csv", "results/shear/stress.csv", "results/crosscheck.csv",
                 *(f"results/crosscheck/{scene}_transfer.csv" for scene in ("slide", "shear"))]
     snakefile = str(ROOT / "workflow" / "Snakefile")
     proc = subprocess.run([SNAKEMAKE, "-c2", "-s", snakefile, "-d", str(wd), "--config", "scale=ci",

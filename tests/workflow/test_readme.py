@@ -92,6 +92,7 @@ PROMISES = {
     "results/shear/benchmark.csv": {"builds": ({"shear"}, "performance")},
     "results/shear/stability.csv": {"builds": ({"shear"}, "stability")},
     "results/shear/property.csv": {"builds": ({"shear"}, "property_test")},
+    "results/shear/stress.csv": {"builds": ({"shear"}, "stress_test")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
     "results/crosscheck.csv --config scale=ci":
         {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},

@@ -457,6 +457,40 @@ def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):
     assert meteorite["property_names"] == [] and meteorite["kinematic_species"] == []
 
 
+def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable(ci_results):
+    """stress.csv: the readout trained on the train split (chosen on valid) reads each test sim's stress; the DEM's
+    and the ensemble's peaks are their observables' largest values over the predicted frames."""
+    import pandas as pd
+
+    from surrogate import stress
+    res = ci_results / "shear"
+    splits = pd.read_csv(res / "dataset" / "splits.csv")
+    ids = list(splits.query("split == 'test'")["id"])
+    table = pd.read_csv(res / "stress.csv")
+    assert list(table["sim"]) == [*ids, "all"]
+    k = int(table["history"].iloc[0])
+    assert k == config.load({"scale": "ci"})["shear"]["model"]["history"]
+    for sim in ids:
+        row = table.set_index("sim").loc[sim]
+        truth = h5md.read(res / "sims" / f"{sim}.h5")
+        member = h5md.read(res / "ensemble" / "sims" / f"{sim}.h5")
+        assert row["dem_peak"] == pytest.approx(truth.observables["shear_stress"][k:].max(), rel=1e-9)
+        assert row["ensemble_peak"] == pytest.approx(member.observables["shear_stress"][k:].max(), rel=1e-9)
+        assert row["normal_stress"] == truth.parameters["normal_stress"]
+        for name in ("readout", "graphdem", "cv"):
+            assert np.isfinite(row[f"{name}_peak"]) and np.isfinite(row[f"{name}_rmse"])
+            assert row[f"{name}_error"] == pytest.approx(row[f"{name}_peak"] / row["dem_peak"] - 1)
+    _, meta = stress.load(res / "stress" / "readout.pt")
+    assert meta["train_sims"] == list(splits.query("split == 'train'")["id"])
+    assert meta["valid_sims"] == list(splits.query("split == 'valid'")["id"])
+    history = pd.read_csv(res / "stress" / "history.csv")
+    assert len(history) == config.load({"scale": "ci"})["shear"]["stress_readout"]["epochs"]
+    assert meta["valid_mse"] == pytest.approx(history["valid_mse"].min())
+    assert (res / "plots" / "stress.png").stat().st_size > 10_000
+    for stage in ("stress_readout", "stress_test"):
+        assert (res / "logs" / f"{stage}.log").is_file() and (res / "benchmarks" / f"{stage}.tsv").is_file()
+
+
 def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci_results):
     """Article Fig. 14: the DEM reruns differ from the test sim in the modulus alone, the stiffer soil is
     compressed less by the same platen load, and property.csv compares the DEM's change with the model's."""

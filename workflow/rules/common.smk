@@ -410,6 +410,26 @@ def property_test_inputs(wildcards) -> dict[str, list[str]]:
     return inputs
 
 
+def test_sims(wildcards) -> list[str]:
+    """A scene's test sims' files."""
+    return [f"results/{wildcards.name}/sims/{i}.h5" for i in test_ids(wildcards.name)]
+
+
+def stress_readout_json(wildcards) -> str:
+    """The scene's stress_readout settings (the readout's training), as JSON."""
+    return json.dumps(CFG[wildcards.name]["stress_readout"])
+
+
+def stress_test_args(wildcards) -> list[str]:
+    """The rollouts, K, tolerance and (where the scene has one) DEM ensemble of the stress test."""
+    scene = wildcards.name
+    chaos = []
+    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
+        chaos = ["--ensemble", f"results/{scene}/ensemble/sims"]
+    return ["--rollouts", f"results/{scene}/rollouts", "--history", str(history_length(wildcards)),
+            "--tolerance", str(CFG[scene]["stress_readout"]["tolerance"]), *chaos]
+
+
 def property_test_args(wildcards) -> list[str]:
     """The runs, sims, property, K and tolerance of the property test (and the chaos' folders)."""
     scene = wildcards.scene

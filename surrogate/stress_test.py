@@ -1,0 +1,108 @@
+"""The shear test's stress, predicted: the peak shear stress and the stress curve of each test sim, read by the
+shear-stress readout (:mod:`surrogate.stress`) from Graph-DEM's rollout, beside the DEM.
+
+Per test sim, over the predicted frames (K .. T-1; the rollout is given the first K):
+
+* ``dem_peak``: the DEM's peak of its ``shear_stress`` observable (the truth);
+* ``readout_peak``: the readout applied to the DEM's own frames (the readout's error alone);
+* ``graphdem_peak``: the readout applied to Graph-DEM's rollout (the surrogate's prediction);
+* ``cv_peak``: the readout applied to constant-velocity extrapolation from the same K frames;
+* ``ensemble_peak``: the DEM ensemble rerun's own observable (the DEM's chaos: a second sample of the truth).
+
+Each ``*_error`` is (peak - dem_peak) / dem_peak, each ``*_rmse`` the RMS difference of the curve from the DEM's
+over the predicted frames (Pa); ``passed``: |graphdem_error| <= tolerance (issue target: 10 %). The ``all`` row
+holds the mean absolute errors, the mean RMSEs and the number of sims passed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from generators import h5md
+from surrogate import stress
+from surrogate.baseline import constant_velocity
+from surrogate.evaluate import read_rollout
+
+COMPARATORS = ("readout", "graphdem", "cv", "ensemble")
+
+
+@dataclass
+class Curves:
+    """One test sim's shear stress per frame (Pa): the DEM's observable and each comparator's."""
+
+    sim: str
+    displacement: np.ndarray          # [T] m, the lower half's shear displacement
+    dem: np.ndarray                   # [T]
+    predicted: dict[str, np.ndarray]  # comparator -> [T] (NaN where undefined)
+
+
+def _peak(curve: np.ndarray, history: int) -> float:
+    tail = np.asarray(curve, float)[history:]
+    return float(np.nanmax(tail)) if np.isfinite(tail).any() else float("nan")
+
+
+def curves(model: stress.StressReadout, cutoff: float, traj: h5md.Trajectory, rollout: np.ndarray,
+           history: int, ensemble: h5md.Trajectory | None) -> Curves:
+    """The DEM's curve and the comparators' of one test sim (module docstring)."""
+    truth = stress.Sample.from_trajectory(traj)
+    if not np.isfinite(truth.shear_stress).all():
+        raise ValueError(f"sim {truth.id}: no shear_stress observable; rerun its DEM (the shear scene writes it)")
+    predicted = {
+        "readout": stress.read(model, truth, cutoff),
+        "graphdem": stress.read(model, stress.Sample.from_trajectory(traj, rollout), cutoff),
+        "cv": stress.read(model, stress.Sample.from_trajectory(
+            traj, constant_velocity(traj.position, traj.kinematic, history)), cutoff),
+        "ensemble": (np.asarray(ensemble.observables["shear_stress"], float) if ensemble is not None
+                     else np.full(len(truth.shear_stress), np.nan)),
+    }
+    return Curves(truth.id, np.asarray(traj.observables.get("shear_displacement", np.arange(len(traj.time))), float),
+                  truth.shear_stress, predicted)
+
+
+def score(curve: Curves, history: int, tolerance: float, normal_stress: float, young: float) -> dict:
+    """One sim's row (module docstring)."""
+    dem_peak = _peak(curve.dem, history)
+    row = {"sim": curve.sim, "normal_stress": normal_stress, "young": young, "history": history,
+           "dem_peak": dem_peak}
+    for name in COMPARATORS:
+        peak = _peak(curve.predicted[name], history)
+        diff = (np.asarray(curve.predicted[name], float) - curve.dem)[history:]
+        row[f"{name}_peak"] = peak
+        row[f"{name}_error"] = (peak - dem_peak) / dem_peak
+        row[f"{name}_rmse"] = float(np.sqrt(np.mean(diff ** 2))) if np.isfinite(diff).all() else float("nan")
+    row["passed"] = bool(abs(row["graphdem_error"]) <= tolerance)
+    return row
+
+
+def summary(rows: pd.DataFrame, tolerance: float) -> dict:
+    """The ``all`` row: mean |error| and mean RMSE per comparator, sims passed."""
+    out = {"sim": "all", "history": int(rows["history"].iloc[0]), "dem_peak": float(rows["dem_peak"].mean()),
+           "passed": f"{int(rows['passed'].sum())} of {len(rows)} (within {tolerance:.0%})"}
+    for name in COMPARATORS:
+        out[f"{name}_peak"] = float(rows[f"{name}_peak"].mean())
+        out[f"{name}_error"] = float(rows[f"{name}_error"].abs().mean())
+        out[f"{name}_rmse"] = float(rows[f"{name}_rmse"].mean())
+    return out
+
+
+def run(readout: Path, sims: list[Path], rollouts: Path, sha: str, history: int, tolerance: float,
+        ensemble: Path | None = None) -> tuple[pd.DataFrame, list[Curves]]:
+    """The table (a row per sim, then ``all``) and the curves, from the test sims' files, the rollouts made by the
+    checkpoint of digest ``sha`` (``rollouts/<id>.h5``) and, optionally, the DEM ensemble (``ensemble/<id>.h5``)."""
+    model, meta = stress.load(readout)
+    rows, all_curves = [], []
+    for path in sims:
+        traj = h5md.read(path)
+        sim = str(traj.parameters["id"])
+        rollout = read_rollout(rollouts / f"{sim}.h5", sha, history)
+        member = h5md.read(ensemble / f"{sim}.h5") if ensemble is not None else None
+        curve = curves(model, float(meta["cutoff"]), traj, np.asarray(rollout.position, np.float64), history, member)
+        all_curves.append(curve)
+        rows.append(score(curve, history, tolerance, float(traj.parameters["normal_stress"]),
+                          float(traj.parameters["young"])))
+    table = pd.DataFrame(rows)
+    return pd.concat([table, pd.DataFrame([summary(table, tolerance)])], ignore_index=True), all_curves

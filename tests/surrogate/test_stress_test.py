@@ -1,0 +1,42 @@
+"""The stress test's scoring: peaks over the predicted frames only, signed relative errors, curve RMSE, the
+pass rule, and the summary row."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from surrogate import stress_test
+
+
+def _curve(sim, dem, **predicted):
+    full = {name: np.asarray(predicted.get(name, np.full(len(dem), np.nan)), float)
+            for name in stress_test.COMPARATORS}
+    return stress_test.Curves(sim, np.linspace(0.0, 6e-3, len(dem)), np.asarray(dem, float), full)
+
+
+def test_peaks_are_taken_over_the_predicted_frames_and_scored_against_the_dems():
+    # the DEM's largest value (90) lies in the given frames: the predicted window's peak is 50
+    dem = [0, 90, 20, 30, 50, 40]
+    curve = _curve("a", dem, readout=[0, 80, 20, 30, 52, 40], graphdem=[np.nan, 0, 25, 35, 44, 40],
+                   cv=[0, 0, 60, 70, 80, 90], ensemble=[0, 90, 22, 28, 49, 41])
+    row = stress_test.score(curve, history=2, tolerance=0.1, normal_stress=1e4, young=1e7)
+    assert row["dem_peak"] == 50
+    assert row["readout_peak"] == 52 and row["readout_error"] == pytest.approx(0.04)
+    assert row["graphdem_peak"] == 44 and row["graphdem_error"] == pytest.approx(-0.12)
+    assert row["cv_peak"] == 90 and row["cv_error"] == pytest.approx(0.8)
+    assert row["ensemble_error"] == pytest.approx(-0.02)
+    assert row["graphdem_rmse"] == pytest.approx(np.sqrt(np.mean(np.square([5, 5, -6, 0]))))
+    assert not row["passed"]                                          # 12 % off, tolerance 10 %
+    assert stress_test.score(curve, 2, 0.15, 1e4, 1e7)["passed"]
+
+
+def test_a_broken_prediction_has_no_rmse_and_the_summary_counts_passes():
+    good = _curve("a", [0, 0, 10, 20], readout=[0, 0, 10, 20], graphdem=[0, 0, 10, 21], cv=[0, 0, 10, 30])
+    broken = _curve("b", [0, 0, 10, 20], readout=[0, 0, 10, 20], graphdem=[0, 0, np.nan, 19], cv=[0, 0, 5, 5])
+    rows = pd.DataFrame([stress_test.score(c, 2, 0.1, 1e4, 1e7) for c in (good, broken)])
+    assert np.isnan(rows["graphdem_rmse"].iloc[1]) and rows["graphdem_peak"].iloc[1] == 19   # the finite frames' peak
+    assert list(rows["passed"]) == [True, True]
+    summary = stress_test.summary(rows, 0.1)
+    assert summary["passed"] == "2 of 2 (within 10%)"
+    assert summary["graphdem_error"] == pytest.approx(np.mean([0.05, 0.05]))
+    assert summary["cv_error"] == pytest.approx(np.mean([0.5, 0.75]))
