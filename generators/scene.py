@@ -34,16 +34,16 @@ from generators.packing import packing_key
 # How an engine runs, not what it computes: never in a sweep row, a packing's key or the sweep stage's
 # parameters, so a change to them reruns nothing (ranks: MPI ranks of a LAMMPS run).
 EXECUTION_KEYS = ("ranks",)
+# Surrogate settings (the Graph-DEM model, its training and scoring, and a scene's stress readout): a
+# change to them retrains or rescores, it never reruns the sweep or an engine.
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability", "stress_readout")
 # Keys of a scene section that never enter a sweep row: sweep and sizes, surrogate settings, how an engine
 # runs, and the settling of the packing (which only the packing key carries).
-NOT_IN_ROWS = frozenset({
-    "seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time", "settle_damping",
-    "settle_speed", "model", "train", "runtime", "evaluate", "performance", "stability", "scales", *EXECUTION_KEYS})
+NOT_IN_ROWS = frozenset({"seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time",
+                         "settle_damping", "settle_speed", "scales", *SURROGATE_KEYS, *EXECUTION_KEYS})
 # Keys no settled packing depends on (the sweep, sizes, surrogate settings and how an engine runs).
-NOT_IN_PACKINGS = frozenset({"split", "sweep", "n_sims", "n_packings", "connectivity_radius", "model", "train",
-                             "runtime", "evaluate", "performance", "stability", "scales", *EXECUTION_KEYS})
-# Surrogate settings: a change to them retrains, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability")
+NOT_IN_PACKINGS = frozenset({"split", "sweep", "n_sims", "n_packings", "connectivity_radius", "scales",
+                             *SURROGATE_KEYS, *EXECUTION_KEYS})
 
 
 class _Reader(dict):

@@ -46,6 +46,8 @@ ENSEMBLE_RUNS = [f"{s}/ensemble" for s in SCENES]
 PROPERTY_VALUES = {s: gproperty.values(s, CFG[s]) for s in SCENES}
 PROPERTY_RUNS = [f"{s}/property/{i}" for s in SCENES for i in range(len(PROPERTY_VALUES[s]))]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
+# Scenes whose section has a stress_readout (a stress read from predicted frames; workflow/rules/stress.smk).
+STRESS_SCENES = [s for s in SCENES if "stress_readout" in CFG[s]]
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
 # The results folders this run involves (filled while the DAG is built); each records the run's scale.

@@ -1,7 +1,8 @@
-# Stage stress: the shear test's stress, predicted (docs/shear-scene.md, "The predicted shear stress"). A
-# pair-force readout (surrogate/stress.py) is fitted to the train sims' DEM frames and their shear_stress
-# observable, chosen on valid; stress.csv reads the test sims' stress from the DEM's frames, Graph-DEM's rollouts
-# and constant velocity with it, beside the DEM's observable and its ensemble rerun's (the chaos).
+# Stage stress: a stress observable predicted, for every scene whose section has a stress_readout (the shear test;
+# docs/shear-scene.md, "The predicted shear stress"). A pair-force readout (surrogate/stress.py) is fitted to the
+# train sims' DEM frames and their shear_stress observable, chosen on valid; stress.csv reads the test sims' stress
+# from the DEM's frames, Graph-DEM's rollouts and constant velocity with it, beside the DEM's observable and its
+# ensemble rerun's (the chaos).
 rule stress_readout:
     input:
         splits="results/{name}/dataset/splits.csv",
@@ -12,7 +13,7 @@ rule stress_readout:
     params:
         settings=stress_readout_json,
     wildcard_constraints:
-        name="shear",
+        name="|".join(STRESS_SCENES),
     threads: 1
     log:
         "results/{name}/logs/stress_readout.log",
@@ -36,11 +37,11 @@ rule stress_test:
                      labels={"figure": "stress.csv (download)", "scene": "{name}"}),
         plot=report("results/{name}/plots/stress.png", caption="../report/stress.rst",
                     category=report_category, subcategory="stress",
-                    labels={"figure": "shear stress curves", "scene": "{name}"}),
+                    labels={"figure": "stress curves", "scene": "{name}"}),
     params:
         args=stress_test_args,
     wildcard_constraints:
-        name="shear",
+        name="|".join(STRESS_SCENES),
     threads: 1
     log:
         "results/{name}/logs/stress_test.log",
