@@ -4,7 +4,6 @@ mechanical energy that grows although nothing supplies it."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 
 class BlowUp(RuntimeError):
@@ -20,6 +19,9 @@ def overlap_fractions(x: np.ndarray, radius: np.ndarray, kinematic: np.ndarray) 
 
     Pairs of two kinematic particles are ignored (their overlap is part of the geometry).
     """
+    # imported here, not at the top: the workflow imports this module to plan its jobs
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(x)
     pairs = tree.query_pairs(2.0 * float(radius.max()), output_type="ndarray")
     if len(pairs) == 0:

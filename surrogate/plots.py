@@ -91,6 +91,9 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
         fig.suptitle(title)
         return []
 
+    draw(0)
+    fig.canvas.draw()                   # lays the figure out once: every frame has the same axes and text sizes,
+    fig.set_layout_engine("none")       # so the layout stays (constrained layout per frame was most of the cost)
     anim = FuncAnimation(fig, draw, frames=len(truth), blit=False)
     path = Path(path)
     with atomic_path(path) as tmp:
