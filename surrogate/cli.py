@@ -325,6 +325,7 @@ def cmd_property_test(args) -> None:
         table.to_csv(tmp, index=False)
     print(table.to_string(index=False))
 
+
 def cmd_stress_readout(args) -> None:
     import pandas as pd
 

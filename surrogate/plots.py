@@ -242,10 +242,12 @@ def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> P
 def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, title: str) -> Path:
     """The shear stress against the shear displacement, one panel per test sim: the DEM's observable, the readout
     on the DEM's frames, on Graph-DEM's rollout and on constant velocity, and the DEM ensemble's observable; the
-    given frames shaded (surrogate.stress_test)."""
+    given frames shaded (surrogate.stress_test). Each panel's y range is set by the DEM's curves (its observable,
+    the readout on its frames, the ensemble's) up to twice their peak: a prediction far off leaves the panel, and
+    the title gives its peak error."""
     styles = {"readout": ("readout on DEM frames", "0.45", "--"), "graphdem": ("Graph-DEM", "tab:blue", "-"),
               "cv": ("constant velocity", "tab:orange", "-"), "ensemble": ("DEM ensemble", "tab:green", ":")}
-    fig, axes = plt.subplots(1, len(curves), figsize=(3.6 * len(curves), 3.4), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, len(curves), figsize=(3.6 * len(curves), 3.4), squeeze=False)
     for ax, curve in zip(axes[0], curves, strict=True):
         mm = 1e3 * curve.displacement
         ax.axvspan(mm[0], mm[history - 1], color="0.9", lw=0)
@@ -253,9 +255,15 @@ def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, t
         for name, (label, colour, line) in styles.items():
             if np.isfinite(curve.predicted[name]).any():
                 ax.plot(mm, 1e-3 * curve.predicted[name], color=colour, ls=line, label=label)
+        dem_side = np.concatenate([curve.dem, curve.predicted["readout"], curve.predicted["ensemble"]])
+        dem_side = 1e-3 * dem_side[np.isfinite(dem_side)]
+        top = 2.0 * max(float(dem_side.max()), 0.0)
+        if top > 0:
+            ax.set_ylim(min(0.0, float(dem_side.min())) - 0.05 * top, top)
         row = table[table["sim"] == curve.sim].iloc[0]
         ax.set_title(f"{curve.sim}: {row['normal_stress'] / 1e3:.3g} kPa, E {row['young']:.2g} Pa\n"
-                     f"peak: Graph-DEM {100 * row['graphdem_error']:+.0f} %", fontsize=8)
+                     f"peak error: Graph-DEM {100 * row['graphdem_error']:+.0f} %, "
+                     f"constant velocity {100 * row['cv_error']:+.0f} %", fontsize=8)
         ax.set_xlabel("shear displacement (mm)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("shear stress (kPa)")

@@ -66,9 +66,9 @@ def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
 
 def test_contact_correction_is_null_or_its_two_keys():
     defaults = config.load()
-    for scene in ("slide", "meteorite"):                  # chosen on each scene's valid split (docs/surrogate.md)
+    for scene in ("slide", "meteorite", "shear"):         # chosen on each scene's valid split (docs/surrogate.md)
         assert defaults[scene]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 50}
-    assert all(defaults[scene]["runtime"]["contact_correction"] is None for scene in ("shear", "collapse"))
+    assert defaults["collapse"]["runtime"]["contact_correction"] is None
     assert config.load({"slide": {"runtime": {"contact_correction": None}}})["slide"]["runtime"]["contact_correction"] \
         is None
     on = {"allowed_overlap": 0.01, "iterations": 20}
