@@ -49,8 +49,8 @@ def positions(path: Path) -> np.ndarray:
 def test_the_same_command_resumes_after_kill_9_with_identical_results(tmp_path):
     reference, killed = tmp_path / "reference", tmp_path / "killed"
     # the uninterrupted reference runs beside the killed runs (each is one core, -c1)
-    reference_log = (tmp_path / "reference.log").open("w")
-    uninterrupted = subprocess.Popen(command(reference), stdout=reference_log, stderr=subprocess.STDOUT)
+    with (tmp_path / "reference.log").open("w") as reference_log:        # the child keeps its own descriptor
+        uninterrupted = subprocess.Popen(command(reference), stdout=reference_log, stderr=subprocess.STDOUT)
     raw = killed / "results" / "slide" / "raw"
     kill_when(killed, lambda: raw.is_dir() and any(p.name.startswith(".slide_") for p in raw.iterdir()))
     assert (killed / ".snakemake" / "locks").is_dir() and any((killed / ".snakemake" / "locks").iterdir())
