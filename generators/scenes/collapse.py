@@ -18,13 +18,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from generators import contact, dem
 from generators.config import ConfigError
 from generators.scene import Scene, check_range, lattice_count, lattice_spacing, trajectory_parameters
+
+if TYPE_CHECKING:  # pandas is imported where a table is built, not when the workflow plans
+    import pandas as pd
 
 FLOOR, GRAIN = 0, 1
 SETTLE_CHECK = 0.02       # s of physical time between two checks of the settling speed
@@ -229,6 +232,8 @@ class Collapse(Scene):
     def physics(self, trajectories: list, out_csv: Path, out_png: Path) -> pd.DataFrame:
         """Final runout and height of every sim against its settled aspect ratio, the fits of both regimes
         beside the published laws (rows with ``sim = fit``), and a plot of both."""
+        import pandas as pd
+
         rows = []
         for traj in trajectories:
             m = CollapseMetrics.for_trajectory(traj)
@@ -255,6 +260,8 @@ def fit_runout(table: pd.DataFrame) -> pd.DataFrame:
     """Per friction (and all together): the linear prefactor lambda of (L - L0)/L0 = lambda a over the
     sims below Lube's a = 1.8, and c, alpha of c a^alpha (log-log least squares) over those above a = 2.8;
     the final height's exponent above a = 1.15. NaN where a regime has too few sims."""
+    import pandas as pd
+
     out = []
     groups = [("all", table)] + [(f"{mu:g}", g) for mu, g in table.groupby("friction")]
     for name, g in groups:

@@ -18,7 +18,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from generators import contact, dem
 from generators.config import ConfigError
@@ -162,6 +161,8 @@ class MeteoriteMetrics:
 
     def impact_x(self, position: np.ndarray) -> float:
         """x of the meteorite's centre of mass at first contact (NaN if it never touches the ground)."""
+        from scipy.spatial import cKDTree  # here, not when the workflow plans (scipy costs ~0.7 s to import)
+
         met, ground = ~self.ground, self.ground
         r_met, r_ground = self.radius[met], self.radius[ground]
         reach = float(r_met.max() + r_ground.max())
