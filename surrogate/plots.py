@@ -241,12 +241,13 @@ def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> P
 
 def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, title: str) -> Path:
     """The shear stress against the shear displacement, one panel per test sim: the DEM's observable, the readout
-    on the DEM's frames, on Graph-DEM's rollout and on constant velocity, and the DEM ensemble's observable; the
-    given frames shaded (surrogate.stress_test). Each panel's y range is set by the DEM's curves (its observable,
-    the readout on its frames, the ensemble's) up to twice their peak: a prediction far off leaves the panel, and
-    the title gives its peak error."""
+    on the DEM's frames, on Graph-DEM's rollout and on constant velocity, the DEM ensemble's observable and the
+    Coulomb floor (the train sims' mean stress ratio); the given frames shaded (surrogate.stress_test). Each
+    panel's y range is set by the DEM's curves (its observable, the readout on its frames, the ensemble's) up to
+    twice their peak: a prediction far off leaves the panel, and the title gives its peak error and the floor's."""
     styles = {"readout": ("readout on DEM frames", "0.45", "--"), "graphdem": ("Graph-DEM", "tab:blue", "-"),
-              "cv": ("constant velocity", "tab:orange", "-"), "ensemble": ("DEM ensemble", "tab:green", ":")}
+              "cv": ("constant velocity", "tab:orange", "-"), "ensemble": ("DEM ensemble", "tab:green", ":"),
+              "coulomb": ("Coulomb, train sims' mean", "tab:purple", "-.")}
     fig, axes = plt.subplots(1, len(curves), figsize=(3.6 * len(curves), 3.4), squeeze=False)
     for ax, curve in zip(axes[0], curves, strict=True):
         mm = 1e3 * curve.displacement
@@ -263,7 +264,7 @@ def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, t
         row = table[table["sim"] == curve.sim].iloc[0]
         ax.set_title(f"{curve.sim}: {row['normal_stress'] / 1e3:.3g} kPa, E {row['young']:.2g} Pa\n"
                      f"peak error: Graph-DEM {100 * row['graphdem_error']:+.0f} %, "
-                     f"constant velocity {100 * row['cv_error']:+.0f} %", fontsize=8)
+                     f"Coulomb {100 * row['coulomb_error']:+.0f} %", fontsize=8)
         ax.set_xlabel("shear displacement (mm)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("shear stress (kPa)")

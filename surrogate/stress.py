@@ -226,7 +226,8 @@ def fit(train: list[Sample], valid: list[Sample], cfg: dict, progress: bool = Tr
     history = pd.DataFrame(rows)
     meta = {"cutoff": cutoff, "hidden": int(cfg["hidden"]), "layers": int(cfg["layers"]), "n_types": n_types,
             "features": list(FEATURES), "epoch": int(history["valid_mse"].idxmin()) + 1, "valid_mse": best,
-            "train_sims": [s.id for s in train], "valid_sims": [s.id for s in valid]}
+            "train_sims": [s.id for s in train], "valid_sims": [s.id for s in valid],
+            "train_stress_ratio": [(s.shear_stress / s.normal_stress).tolist() for s in train]}
     log.info("stress readout: best valid MSE of tau / sigma_n %.4g at epoch %d of %d", best, meta["epoch"],
              len(history))
     return model.eval(), meta, history

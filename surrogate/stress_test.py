@@ -7,7 +7,11 @@ Per test sim, over the predicted frames (K .. T-1; the rollout is given the firs
 * ``readout_peak``: the readout applied to the DEM's own frames (the readout's error alone);
 * ``graphdem_peak``: the readout applied to Graph-DEM's rollout (the surrogate's prediction);
 * ``cv_peak``: the readout applied to constant-velocity extrapolation from the same K frames;
-* ``ensemble_peak``: the DEM ensemble rerun's own observable (the DEM's chaos: a second sample of the truth).
+* ``ensemble_peak``: the DEM ensemble rerun's own observable (the DEM's chaos: a second sample of the truth);
+* ``coulomb_peak``: no model at all, the Mohr-Coulomb guess a geotechnical engineer makes from the training tests:
+  tau = sigma_n mu, mu the train sims' mean peak stress ratio (their peaks of tau / sigma_n over the same
+  frames, averaged), along the train sims' mean curve of tau / sigma_n scaled to that peak (:func:`coulomb`).
+  A stress predicted from Graph-DEM's frames is worth having where it beats this floor.
 
 Each ``*_error`` is (peak - dem_peak) / dem_peak, each ``*_rmse`` the RMS difference of the curve from the DEM's
 over the predicted frames (Pa); ``passed``: |graphdem_error| <= tolerance (issue target: 10 %). The ``all`` row
@@ -27,7 +31,7 @@ from surrogate import stress
 from surrogate.baseline import constant_velocity
 from surrogate.evaluate import read_rollout
 
-COMPARATORS = ("readout", "graphdem", "cv", "ensemble")
+COMPARATORS = ("readout", "graphdem", "cv", "ensemble", "coulomb")
 
 
 @dataclass
@@ -45,12 +49,33 @@ def _peak(curve: np.ndarray, history: int) -> float:
     return float(np.nanmax(tail)) if np.isfinite(tail).any() else float("nan")
 
 
-def curves(model: stress.StressReadout, cutoff: float, traj: h5md.Trajectory, rollout: np.ndarray,
+def coulomb(train_ratio: list, normal_stress: float, history: int) -> np.ndarray:
+    """[T] Pa: the Mohr-Coulomb floor (module docstring) for a sim at ``normal_stress``, from the train sims' curves
+    of tau / sigma_n ([S][T], stored with the readout): sigma_n mu s(t) / max s, s the mean curve, mu the mean
+    of the curves' peaks, both over frames ``history`` .. T-1, so that the curve's peak is sigma_n mu there."""
+    ratio = np.asarray(train_ratio, np.float64)
+    if ratio.ndim != 2 or ratio.shape[1] <= history or not np.isfinite(ratio).all():
+        raise ValueError(f"the readout's train stress ratios have shape {ratio.shape} (finite: "
+                         f"{bool(np.isfinite(ratio).all())}); the Coulomb floor needs one finite curve per train sim "
+                         f"longer than K = {history}")
+    shape = ratio.mean(axis=0)
+    return normal_stress * float(ratio[:, history:].max(axis=1).mean()) * shape / float(shape[history:].max())
+
+
+def curves(model: stress.StressReadout, meta: dict, traj: h5md.Trajectory, rollout: np.ndarray,
            history: int, ensemble: h5md.Trajectory | None) -> Curves:
-    """The DEM's curve and the comparators' of one test sim (module docstring)."""
+    """The DEM's curve and the comparators' of one test sim (module docstring); ``meta`` is the readout's."""
+    if "train_stress_ratio" not in meta:
+        raise ValueError("the stress readout predates the Coulomb floor (no train_stress_ratio in its metadata): "
+                         "refit it, e.g. snakemake -c2 results/<scene>/stress.csv -R stress_readout")
     truth = stress.Sample.from_trajectory(traj)
     if not np.isfinite(truth.shear_stress).all():
         raise ValueError(f"sim {truth.id}: no shear_stress observable; rerun its DEM (the shear scene writes it)")
+    floor = coulomb(meta["train_stress_ratio"], truth.normal_stress, history)
+    if len(floor) != len(truth.shear_stress):
+        raise ValueError(f"sim {truth.id} has {len(truth.shear_stress)} frames, the readout's train sims "
+                         f"{len(floor)}: the Coulomb floor compares frame by frame")
+    cutoff = float(meta["cutoff"])
     predicted = {
         "readout": stress.read(model, truth, cutoff),
         "graphdem": stress.read(model, stress.Sample.from_trajectory(traj, rollout), cutoff),
@@ -58,6 +83,7 @@ def curves(model: stress.StressReadout, cutoff: float, traj: h5md.Trajectory, ro
             traj, constant_velocity(traj.position, traj.kinematic, history)), cutoff),
         "ensemble": (np.asarray(ensemble.observables["shear_stress"], float) if ensemble is not None
                      else np.full(len(truth.shear_stress), np.nan)),
+        "coulomb": floor,
     }
     return Curves(truth.id, np.asarray(traj.observables.get("shear_displacement", np.arange(len(traj.time))), float),
                   truth.shear_stress, predicted)
@@ -100,7 +126,7 @@ def run(readout: Path, sims: list[Path], rollouts: Path, sha: str, history: int,
         sim = str(traj.parameters["id"])
         rollout = read_rollout(rollouts / f"{sim}.h5", sha, history)
         member = h5md.read(ensemble / f"{sim}.h5") if ensemble is not None else None
-        curve = curves(model, float(meta["cutoff"]), traj, np.asarray(rollout.position, np.float64), history, member)
+        curve = curves(model, meta, traj, np.asarray(rollout.position, np.float64), history, member)
         all_curves.append(curve)
         rows.append(score(curve, history, tolerance, float(traj.parameters["normal_stress"]),
                           float(traj.parameters["young"])))

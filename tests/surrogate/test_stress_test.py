@@ -40,3 +40,22 @@ def test_a_broken_prediction_has_no_rmse_and_the_summary_counts_passes():
     assert summary["passed"] == "2 of 2 (within 10%)"
     assert summary["graphdem_error"] == pytest.approx(np.mean([0.05, 0.05]))
     assert summary["cv_error"] == pytest.approx(np.mean([0.5, 0.75]))
+
+
+def test_the_coulomb_floor_peaks_at_sigma_n_times_the_train_sims_mean_peak_ratio():
+    # two train sims' tau / sigma_n; K = 2: their peaks over frames 2.. are 0.8 and 0.6 (the 0.9 at frame 1 is given)
+    train = [[0.0, 0.9, 0.4, 0.8, 0.7], [0.0, 0.1, 0.2, 0.4, 0.6]]
+    floor = stress_test.coulomb(train, normal_stress=2e4, history=2)
+    assert floor[2:].max() == pytest.approx(2e4 * 0.7)               # sigma_n x mean(0.8, 0.6)
+    mean = np.mean(train, axis=0)
+    np.testing.assert_allclose(floor, 2e4 * 0.7 * mean / mean[2:].max())   # the mean curve's shape
+    with pytest.raises(ValueError, match="one finite curve per train sim"):
+        stress_test.coulomb([[0.0, np.nan, 0.3]], 2e4, 1)
+    with pytest.raises(ValueError, match="longer than K = 5"):
+        stress_test.coulomb(train, 2e4, 5)
+
+
+def test_a_readout_without_the_train_ratios_is_refused_with_the_command_that_refits_it():
+    with pytest.raises(ValueError, match="refit it, e.g. snakemake -c2 results/<scene>/stress.csv -R stress_readout"):
+        stress_test.curves(None, {"cutoff": 0.0}, None, np.zeros((3, 2, 3)), 2, None)
+

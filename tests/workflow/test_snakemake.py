@@ -459,7 +459,8 @@ def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):
 
 def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable(ci_results):
     """stress.csv: the readout trained on the train split (chosen on valid) reads each test sim's stress; the DEM's
-    and the ensemble's peaks are their observables' largest values over the predicted frames."""
+    and the ensemble's peaks are their observables' largest values over the predicted frames, the Coulomb floor's
+    the test sim's normal stress times the train sims' mean peak stress ratio."""
     import pandas as pd
 
     from surrogate import stress
@@ -470,14 +471,20 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
     assert list(table["sim"]) == [*ids, "all"]
     k = int(table["history"].iloc[0])
     assert k == config.load({"scale": "ci"})["shear"]["model"]["history"]
+    # the Coulomb floor: sigma_n x the train sims' mean peak of tau / sigma_n over the same frames
+    train_ratio = []
+    for sim in splits.query("split == 'train'")["id"]:
+        traj = h5md.read(res / "sims" / f"{sim}.h5")
+        train_ratio.append(traj.observables["shear_stress"][k:].max() / traj.parameters["normal_stress"])
     for sim in ids:
         row = table.set_index("sim").loc[sim]
         truth = h5md.read(res / "sims" / f"{sim}.h5")
         member = h5md.read(res / "ensemble" / "sims" / f"{sim}.h5")
+        assert row["coulomb_peak"] == pytest.approx(truth.parameters["normal_stress"] * np.mean(train_ratio), rel=1e-9)
         assert row["dem_peak"] == pytest.approx(truth.observables["shear_stress"][k:].max(), rel=1e-9)
         assert row["ensemble_peak"] == pytest.approx(member.observables["shear_stress"][k:].max(), rel=1e-9)
         assert row["normal_stress"] == truth.parameters["normal_stress"]
-        for name in ("readout", "graphdem", "cv"):
+        for name in ("readout", "graphdem", "cv", "coulomb"):
             assert np.isfinite(row[f"{name}_peak"]) and np.isfinite(row[f"{name}_rmse"])
             assert row[f"{name}_error"] == pytest.approx(row[f"{name}_peak"] / row["dem_peak"] - 1)
     _, meta = stress.load(res / "stress" / "readout.pt")
