@@ -11,14 +11,16 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 
 from generators.atomic import atomic_path
 from surrogate import devices
 from surrogate.errors import CheckpointError
-from surrogate.simulator import LearnedSimulator
+
+if TYPE_CHECKING:  # the model (and torch_geometric, ~4 s to import) only where a simulator is built
+    from surrogate.simulator import LearnedSimulator
 
 __all__ = ["CheckpointError", "digest", "load", "save", "simulator_from"]
 
@@ -81,6 +83,8 @@ def read(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
 def simulator_from(path: str | Path, device: str | torch.device = "cpu") -> tuple[LearnedSimulator, dict]:
     """The trained simulator of a checkpoint on ``device`` (a setting of :mod:`surrogate.devices`: auto, cpu,
     cuda, cuda:N), in eval mode, and the checkpoint's JSON metadata."""
+    from surrogate.simulator import LearnedSimulator
+
     where = devices.resolve(device)
     data = load(path, map_location=where)
     meta = data["json"]
