@@ -8,7 +8,6 @@ Tensors are stored from the CPU whatever device trained them, and load onto any 
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -18,6 +17,7 @@ import torch
 from generators.atomic import atomic_path
 from surrogate import devices
 from surrogate.errors import CheckpointError
+from surrogate.provenance import file_digest as digest
 
 if TYPE_CHECKING:  # the model (and torch_geometric, ~4 s to import) only where a simulator is built
     from surrogate.simulator import LearnedSimulator
@@ -95,11 +95,3 @@ def simulator_from(path: str | Path, device: str | torch.device = "cpu") -> tupl
         raise CheckpointError(f"{path}: weights do not fit the model it describes: {exc}") from exc
     return simulator.eval(), meta
 
-
-def digest(path: str | Path) -> str:
-    """Short SHA-256 of a file (names a checkpoint in every metrics file)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()[:12]

@@ -143,14 +143,14 @@ def cmd_train(args) -> None:
 def cmd_rollout(args) -> None:
     import torch
 
-    from surrogate import ensemble, evaluate, rollout
+    from surrogate import ensemble, evaluate, provenance, rollout
     from surrogate.samples import load_sim
     _logging()
     torch.set_num_threads(max(1, args.threads))
     simulator, metas = ensemble.load(args.checkpoint, args.device)
     meta = metas[0]
     simulator, rt = _runtime(args, simulator)
-    sha = ensemble.digest(args.checkpoint)
+    sha = provenance.digest(args.checkpoint)
     for path in evaluate.data_files(args.data):
         sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [],
                        allow_other_scene=args.allow_other_scene)
@@ -312,12 +312,12 @@ def cmd_stability_surrogate(args) -> None:
 
 def cmd_property_test(args) -> None:
     from generators.atomic import atomic_path
-    from surrogate import ensemble, plots, property_test
+    from surrogate import plots, property_test, provenance
     if (args.ensemble is None) != (args.sims_dir is None):
         raise SystemExit("graphdem property-test: give --sims-dir and --ensemble together (the sims and their DEM "
                          "ensemble reruns), or neither")
     chaos = (args.sims_dir, args.ensemble) if args.ensemble is not None else None
-    table, pairs = property_test.run(tuple(args.runs), args.sims, args.property, ensemble.digest(args.checkpoint),
+    table, pairs = property_test.run(tuple(args.runs), args.sims, args.property, provenance.digest(args.checkpoint),
                                      args.history, args.tolerance, chaos)
     if args.plot:
         plots.property_test(pairs, table, args.plot, args.title or f"property test: {args.property}")
@@ -348,8 +348,8 @@ def cmd_stress_readout(args) -> None:
 
 def cmd_stress_test(args) -> None:
     from generators.atomic import atomic_path
-    from surrogate import ensemble, plots, stress_test
-    table, curves = stress_test.run(args.readout, args.sims, args.rollouts, ensemble.digest(args.checkpoint),
+    from surrogate import plots, provenance, stress_test
+    table, curves = stress_test.run(args.readout, args.sims, args.rollouts, provenance.digest(args.checkpoint),
                                     args.history, args.tolerance, args.ensemble)
     if args.plot:
         plots.stress_curves(curves, table, args.history, args.plot, args.title or "shear stress")

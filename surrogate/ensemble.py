@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from surrogate import checkpoint
+from surrogate.provenance import as_paths
 from surrogate.simulator import Graph, LearnedSimulator, advance, next_frame
 
 SHARED_MODEL = ("history", "max_neighbours", "properties")
@@ -119,25 +120,6 @@ def load(paths: Path | str | Sequence[Path | str], device: str | torch.device = 
     if len(loaded) == 1:
         return loaded[0][0], metas
     return Ensemble([simulator for simulator, _ in loaded], [str(p) for p in paths]).eval(), metas
-
-
-def as_paths(paths: Path | str | Sequence[Path | str]) -> list[Path]:
-    """One checkpoint path or several, as a non-empty list."""
-    out = [Path(paths)] if isinstance(paths, str | Path) else [Path(p) for p in paths]
-    if not out:
-        raise ValueError("no checkpoint given")
-    return out
-
-
-def digest(paths: Path | str | Sequence[Path | str]) -> str:
-    """The short SHA-256 of one checkpoint (:func:`surrogate.checkpoint.digest`); of several, their digests
-    joined by '+' in the order given (an ensemble is named by its models)."""
-    return "+".join(checkpoint.digest(p) for p in as_paths(paths))
-
-
-def label(paths: Path | str | Sequence[Path | str]) -> str:
-    """The checkpoint path, or the paths of an ensemble separated by spaces (as recorded in outputs)."""
-    return " ".join(str(p) for p in as_paths(paths))
 
 
 def config_digest(metas: list[dict]) -> str:

@@ -18,13 +18,14 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
-from surrogate import ensemble
+from surrogate import ensemble, provenance
 from surrogate.baseline import constant_velocity
 from surrogate.metrics import accuracy, curve_accuracy, frame_list, of_scene, plausibility
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.runtime import Runtime
 from surrogate.runtime import apply as apply_runtime
 from surrogate.samples import load_sim
+from surrogate.stored import read_ensemble, read_rollout
 
 log = logging.getLogger("graphdem.evaluate")
 
@@ -105,32 +106,6 @@ def evaluation_split(splits: pd.DataFrame, choice: str) -> tuple[str, list[Path]
     return split, [Path(p) for p in splits.loc[splits["split"] == split, "path"]], note
 
 
-def read_rollout(path: Path, sha: str, history: int) -> h5md.Trajectory:
-    traj = h5md.read(path, allow_nonfinite=True)
-    made_by = traj.parameters.get("rollout_checkpoint_sha")
-    if made_by != sha:
-        raise ValueError(f"{path}: this rollout was made by checkpoint {made_by}, not by {sha}; rerun the rollout")
-    given = traj.parameters.get("rollout_history")
-    if given is not None and int(given) != int(history):
-        raise ValueError(f"{path}: this rollout was given {given} frames, the evaluation {history}; "
-                         f"evaluate with --history {given} or rerun the rollout")
-    return traj
-
-
-def read_ensemble(path: Path, traj: h5md.Trajectory) -> np.ndarray:
-    """The DEM ensemble member of a sim: the same sweep row rerun from a perturbed packing, on the same frames."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no DEM ensemble run of this sim (the ensemble stage makes one per test sim)")
-    member = h5md.read(path)
-    if member.position.shape != traj.position.shape:
-        raise ValueError(f"{path}: shape {member.position.shape} differs from the sim's {traj.position.shape}")
-    if not np.allclose(member.time, traj.time, rtol=1e-9, atol=0.0):
-        raise ValueError(f"{path}: its frames are recorded at other times than the sim's")
-    if not np.array_equal(member.kinematic, traj.kinematic) or not np.array_equal(member.species, traj.species):
-        raise ValueError(f"{path}: its particles (species or kinematic mask) differ from the sim's")
-    return np.asarray(member.position, np.float64)
-
-
 def blown_up_from(prediction: np.ndarray, traj: h5md.Trajectory, history: int) -> int | None:
     """The first predicted frame at which the rollout has blown up: a moving particle non-finite, or farther
     outside the box than the box is long on that axis (no granular flow goes there); None if it never does."""
@@ -208,13 +183,13 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     torch.set_num_threads(max(1, int(threads)))
     simulator, metas = ensemble.load(checkpoint_path, device)
     meta = metas[0]
-    name = ensemble.label(checkpoint_path)
+    name = provenance.label(checkpoint_path)
     if runtime is not None:
         apply_runtime(simulator, runtime)
     if int(history) < int(meta["model"]["history"]):
         raise ValueError(f"{name} reads a history of K = {meta['model']['history']} frames; "
                          f"--history {history} gives fewer (allowed: {meta['model']['history']} or more)")
-    sha = ensemble.digest(checkpoint_path)
+    sha = provenance.digest(checkpoint_path)
     cap = simulator.max_neighbours
     props = list(meta["model"].get("properties") or [])
     per_step, sims = [], []
@@ -261,13 +236,13 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
                    for metric, field in ((CAPPED, "capped_per_frame"), (DROPPED, "dropped_per_frame"))]
     table = pd.concat([table, pd.DataFrame(timing).reindex(columns=table.columns)], ignore_index=True)
     configs = [{"model": m["model"], "train": m["train"]} for m in metas]
-    provenance = {"split": split, "split_note": split_note, "history": int(history),
-                  "checkpoint": name, "checkpoint_sha": sha,
-                  "config_sha": ensemble.config_digest(metas),
-                  "code_version": code_version(),
-                  "config": json.dumps(configs[0] if len(configs) == 1 else configs, sort_keys=True)}
+    recorded = {"split": split, "split_note": split_note, "history": int(history),
+                "checkpoint": name, "checkpoint_sha": sha,
+                "config_sha": ensemble.config_digest(metas),
+                "code_version": code_version(),
+                "config": json.dumps(configs[0] if len(configs) == 1 else configs, sort_keys=True)}
     for df in (table, steps):
-        for key, value in provenance.items():
+        for key, value in recorded.items():
             df[key] = value
     return table, steps, sims
 

@@ -29,7 +29,7 @@ import pandas as pd
 from generators import h5md
 from surrogate import dataset
 from surrogate.baseline import constant_velocity
-from surrogate.evaluate import read_ensemble, read_rollout
+from surrogate.stored import read_ensemble, read_rollout
 
 
 def mean_x(position: np.ndarray, kinematic: np.ndarray) -> np.ndarray:

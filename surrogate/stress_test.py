@@ -29,7 +29,7 @@ import pandas as pd
 from generators import h5md
 from surrogate import stress
 from surrogate.baseline import constant_velocity
-from surrogate.evaluate import read_rollout
+from surrogate.stored import read_rollout
 
 COMPARATORS = ("readout", "graphdem", "cv", "ensemble", "coulomb")
 
