@@ -53,7 +53,7 @@ run: install
 
 test: install
 	$(VENV)/bin/ruff check generators surrogate graphdem tests
-	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadgroup
+	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadgroup --no-loadscope-reorder
 
 lint: install
 	$(VENV)/bin/ruff check generators surrogate graphdem tests

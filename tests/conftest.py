@@ -18,12 +18,17 @@ def ci_slide() -> dict:
 
 
 def pytest_collection_modifyitems(config, items):
-    """``make test`` runs the suite on two pytest-xdist workers (``-n 2 --dist loadgroup``). Each test file is one
-    group, so a module's fixtures are built once, on one worker; the workflow files, the longest, are handed out
-    first so that neither worker is left with a long file at the end. (The ci-scale workflow run that several
-    files share is built once for both workers: tests/workflow/conftest.py.)"""
+    """``make test`` runs the suite on two pytest-xdist workers (``-n 2 --dist loadgroup --no-loadscope-reorder``),
+    handing out groups of tests in the order sorted here. Every test that reads the shared ci-scale run of every
+    scene (the ``ci_results`` fixture, about 6 minutes on two cores) is one group, handed out first: one worker
+    builds the run and reads it while the other works through the rest. Every other test file is a group of its
+    own, so its module fixtures are built once, on one worker; the workflow files, the longest, go next."""
     if shutil.which("lmp") is None:
         raise pytest.UsageError("LAMMPS (`lmp`) is not installed: run `make test`, which installs it")
-    items.sort(key=lambda item: not item.nodeid.startswith("tests/workflow/"))      # stable: file order kept
+
+    def group(item) -> str:
+        return "ci_results" if "ci_results" in getattr(item, "fixturenames", ()) else item.nodeid.split("::")[0]
+
+    items.sort(key=lambda item: (group(item) != "ci_results", not item.nodeid.startswith("tests/workflow/")))
     for item in items:
-        item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+        item.add_marker(pytest.mark.xdist_group(group(item)))
