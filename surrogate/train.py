@@ -377,6 +377,12 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             state = saved["json"]["state"]
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
+            planned = state["total_steps"] // n_batches          # the schedule fixed when the run started
+            if snapshots and planned != int(train_cfg["epochs"]):
+                snapshots = snapshot_epochs({**train_cfg, "epochs": planned})
+                log.info("train.epochs changed from %d to %s: the learning-rate cycles and their snapshots stay "
+                         "those of the %d epochs the run started with (epochs %s)", planned, train_cfg["epochs"],
+                         planned, snapshots)
     model = distributed.wrap(simulator, world, device)     # after resuming: DDP starts from rank 0's weights
     # where each epoch ran (history.csv): a resumed run may continue on other hardware
     hardware = [torch.get_num_threads(), world.size, str(device), devices.name(device)]

@@ -283,6 +283,20 @@ def test_cyclic_run_keeps_a_snapshot_per_cycle_and_restarts_the_rate(tiny_datase
     assert not (tmp_path / "bad" / "history.csv").exists()
 
 
+def test_a_cyclic_run_resumed_with_more_epochs_keeps_its_cycles_and_snapshots(tiny_dataset, tmp_path):
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "epochs": 2, "patience": 4, "lr_final": 1e-5,
+                                      "lr_cycles": 2}}
+    stopped = run(tiny, tmp_path, max_steps=1)
+    assert not stopped["finished"]
+    run({**tiny, "train": {**tiny["train"], "epochs": 4}}, tmp_path)        # resumed, two epochs more
+    history = pd.read_csv(tmp_path / "history.csv")
+    assert list(history["epoch"]) == [1, 2, 3, 4]
+    # the cycles of the 2 planned epochs: a snapshot after each; past them the final rate, no further cycle
+    assert sorted(p.name for p in tmp_path.glob("snapshot_*.pt")) == ["snapshot_1.pt", "snapshot_2.pt"]
+    assert [checkpoint.load(tmp_path / f"snapshot_{c}.pt")["json"]["epoch"] for c in (1, 2)] == [1, 2]
+    assert list(history["lr"].iloc[2:]) == pytest.approx([1e-5] * 2)
+
+
 def _gradient(simulator, loss):
     simulator.zero_grad(set_to_none=True)
     loss.backward()
