@@ -11,6 +11,14 @@ from generators import config
 os.environ.setdefault("TORCHINDUCTOR_COMPILE_THREADS", "1")
 
 
+def pytest_configure(config):
+    """Under pytest-xdist each worker computes with one torch thread: two workers with a thread per core each
+    would oversubscribe the cores (the jobs the workflow tests start set their own threads)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import torch
+        torch.set_num_threads(1)
+
+
 @pytest.fixture
 def ci_slide() -> dict:
     """The validated ci-scale slide config section."""
