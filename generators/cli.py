@@ -1,6 +1,6 @@
 """The generators' stages on the `graphdem` command line: config, sweep, prepare, simulate, convert,
-inspect, export, import-solidgn, stability-dem, physics, crosscheck and transfer (surrogate/cli.py adds the
-surrogate's and runs them all).
+inspect, export, import-solidgn, stability-dem, restitution, physics, crosscheck and transfer (surrogate/cli.py
+adds the surrogate's and runs them all).
 
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason
 (naming the file, sim, frame or config key) when something is wrong.
@@ -115,6 +115,32 @@ def cmd_stability_dem(args) -> None:
     for row in table.to_dict("records"):
         outcome = "stable" if row["stable"] else f"BLOWS UP at frame {row['frame']}: {row['cause']}"
         print(f"{row['sim']}, {row['setting']}: {outcome}")
+
+
+def cmd_restitution(args) -> None:
+    import tempfile
+
+    from generators import collision
+    from generators.atomic import atomic_path
+    cfg = resolved_config(args)
+    scene = scenes.get(args.scene)
+    setup = scene.settle_setup(scene.packings(cfg[args.scene])[0])
+    dt_safeties = args.dt_safety or [setup.dt / setup.dt_limit]
+    with tempfile.TemporaryDirectory(prefix="graphdem-restitution-") as scratch:
+        table = collision.time_step_table(setup, args.engines, dt_safeties, args.phases, args.tolerance,
+                                          Path(scratch))
+    table.insert(0, "scene", args.scene)
+    with atomic_path(args.out) as tmp:
+        table.to_csv(tmp, index=False)
+    print(f"{args.scene}: restitution {setup.contact.restitution} measured over {args.phases} impact phases; "
+          f"tolerance {args.tolerance:.1%}")
+    for row in table.to_dict("records"):
+        print(f"dt_safety {row['dt_safety']:g}, {row['engine']}, {row['pair']} pair (r {row['radius']:.4g}): "
+              f"max error {row['max_error']:.2%}, median {row['median_error']:.2%}: "
+              f"{'passes' if row['passes'] else 'FAILS'}")
+    passing = [f for f in dt_safeties if table.loc[table["dt_safety"] == f, "passes"].all()]
+    print(f"largest step of those tried that passes everywhere: "
+          f"{'dt_safety ' + format(max(passing), 'g') if passing else 'none'}")
 
 
 def cmd_import_solidgn(args) -> None:
@@ -251,6 +277,25 @@ def add_commands(sub) -> None:
     p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
     p.add_argument("--out", type=Path, required=True, help="CSV report")
     p.set_defaults(func=cmd_stability_dem)
+
+    p = sub.add_parser("restitution", help="measure a scene's two-sphere restitution at chosen DEM time steps",
+                       description="Collide two spheres of the scene's material head-on in each engine, at each "
+                                   "--dt-safety x the scene's stable limit, for its smallest and its nominal sphere, "
+                                   "at --phases approach speeds (each starts the contact at another point of a time "
+                                   "step); report the largest and median error of the restitution against the "
+                                   "configured one. The design asks for at most 2 %: the cheapest step a scene can "
+                                   "take is the largest that passes in every row (docs/performance.md, \"The DEM's "
+                                   "time step\").")
+    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--dt-safety", type=float, nargs="+", metavar="F",
+                   help="time steps in units of the stable limit (default: the scene's configured one)")
+    p.add_argument("--engines", nargs="+", choices=("lammps", "yade"), default=["yade", "lammps"])
+    p.add_argument("--phases", type=positive_int, default=13, metavar="N", help="impact phases per step (default 13)")
+    p.add_argument("--tolerance", type=float, default=0.02,
+                   help="largest relative error that passes (default 0.02, the design's 2 %%)")
+    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    config_options(p)
+    p.set_defaults(func=cmd_restitution)
 
     p = sub.add_parser("physics", help="check a scene's DEM data against published physics (table and plot)",
                        description="The scene's own physics check on its sims, e.g. the column collapse's runout "

@@ -9,8 +9,9 @@ old acc_percent is the new acc_pooled_percent). The shear was re-pinned when it 
 load (a platen, the normal stress swept), and the slide's Graph-DEM rows when its contact correction was
 switched on; the slide's and the meteorite's data and constant-velocity rows stayed as they were. The
 meteorite's Graph-DEM rows were re-pinned when its contact correction was switched on (data and constant
-velocity unchanged), and so were the shear's; the meteorite's again when it stopped training with
-pushforward (docs/meteorite-scene.md, Training; data and constant velocity unchanged)."""
+velocity unchanged), and so were the shear's; the meteorite's and then the shear's again when each stopped
+training with pushforward (docs/meteorite-scene.md and docs/shear-scene.md, Training; data and constant
+velocity unchanged)."""
 
 import json
 import math
