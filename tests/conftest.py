@@ -25,12 +25,14 @@ def ci_slide() -> dict:
     return config.load({"scale": "ci"})["slide"]
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """``make test`` runs the suite on two pytest-xdist workers (``-n 2 --dist loadgroup --no-loadscope-reorder``),
     handing out groups of tests in the order sorted here. Every test that reads the shared ci-scale run of every
     scene (the ``ci_results`` fixture, about 6 minutes on two cores) is one group, handed out first: one worker
     builds the run and reads it while the other works through the rest. Every other test file is a group of its
-    own, so its module fixtures are built once, on one worker; the workflow files, the longest, go next."""
+    own, so its module fixtures are built once, on one worker; the workflow files, the longest, go next. It runs
+    before pytest-xdist's hook of the same name, which turns the marks into the groups."""
     if shutil.which("lmp") is None:
         raise pytest.UsageError("LAMMPS (`lmp`) is not installed: run `make test`, which installs it")
 
@@ -40,3 +42,17 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: (group(item) != "ci_results", not item.nodeid.startswith("tests/workflow/")))
     for item in items:
         item.add_marker(pytest.mark.xdist_group(group(item)))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_node_collection_finished(node, ids):
+    """The groups above take effect only if pytest-xdist appends them to the test ids (``<id>@<group>``), which
+    it does by setting an attribute pytest 9.2 no longer reads: there every test became a group of its own, each
+    worker built the module fixtures it met (the ci-scale slide run twice) and one worker sat waiting on the
+    other's ci-scale run of every scene. So a run whose workers collected ids without groups stops and says
+    why."""
+    ungrouped = [nodeid for nodeid in ids if "@" not in nodeid]
+    if node.config.getvalue("dist") == "loadgroup" and ungrouped:
+        raise pytest.UsageError(
+            f"pytest-xdist ignored the xdist_group marks (pytest {pytest.__version__}; e.g. {ungrouped[0]}): "
+            "install the pins of constraints.txt (`make install`), under which the tests share their fixtures")
