@@ -68,7 +68,7 @@ def test_contact_correction_is_null_or_its_two_keys():
     defaults = config.load()
     for scene in ("slide", "meteorite", "shear"):         # chosen on each scene's valid split (docs/surrogate.md)
         assert defaults[scene]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 50}
-    assert defaults["collapse"]["runtime"]["contact_correction"] is None
+    assert defaults["collapse"]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 1000}
     assert config.load({"slide": {"runtime": {"contact_correction": None}}})["slide"]["runtime"]["contact_correction"] \
         is None
     on = {"allowed_overlap": 0.01, "iterations": 20}
