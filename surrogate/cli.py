@@ -162,9 +162,12 @@ def cmd_rollout(args) -> None:
         cap = ("" if result.max_neighbours is None else
                f"; neighbour cap {result.max_neighbours}: {result.timing['capped']} receivers capped and "
                f"{result.timing['dropped']} edges dropped over the predicted frames")
+        contacts = ("" if rt is None or rt.contact_correction is None else
+                    f"; contact correction: {result.timing['stopped']} particle-steps stopped at a kinematic "
+                    f"particle, {result.timing['corrected']} pair-steps pushed apart")
         print(f"{out}: {result.n_predicted} frames predicted in {result.seconds:.2f} s "
               f"({1000 * per_frame:.1f} ms per frame{models}, of which graph building "
-              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status}){cap}")
+              f"{1000 * result.seconds_graph / max(result.n_predicted, 1):.1f} ms{status}){cap}{contacts}")
 
 def cmd_evaluate(args) -> None:
     import pandas as pd

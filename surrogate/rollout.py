@@ -6,7 +6,8 @@ first bad frame is reported, never hidden.
 
 After the network's step, the runtime's corrections apply to the moving particles in this order:
 ``keep_in_domain`` puts the particles that left the box back on its faces, then
-``contact_correction`` pushes too-deep overlaps apart (keeping the particles in the box when
+``contact_correction`` stops the particles whose path from the frame before passed a kinematic
+particle and pushes too-deep overlaps apart (keeping the particles in the box when
 ``keep_in_domain`` is on; :mod:`surrogate.correction`). Both act on the frame that the next step
 reads, so the next step's velocities (position differences) are the corrected ones.
 
@@ -29,7 +30,7 @@ from scipy.spatial import cKDTree
 
 from generators import h5md
 from surrogate import devices, samples
-from surrogate.correction import correct_overlaps
+from surrogate.correction import correct_overlaps, stop_at_kinematic
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
 from surrogate.simulator import Graph, LearnedSimulator, build_graph, neighbour_edges, prune_isolated
@@ -136,10 +137,12 @@ def particle_radii(sim: Sim, runtime: Runtime | None, dtype: torch.dtype, device
 
 
 def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Tensor | None, runtime: Runtime | None,
-                 simulator: LearnedSimulator, counts: dict) -> torch.Tensor:
+                 simulator: LearnedSimulator, counts: dict, previous: torch.Tensor | None = None) -> torch.Tensor:
     """The runtime's corrections of one predicted frame (module docstring): ``keep_in_domain``, then
-    ``contact_correction`` (``radius`` from :func:`particle_radii`); ``counts`` gets the particles put
-    back into the box and the pairs pushed apart added."""
+    ``contact_correction`` (``radius`` from :func:`particle_radii`): the paths from ``previous`` (the
+    frame before, where given) stopped at the kinematic particles they passed, then the sweeps;
+    ``counts`` gets the particles put back into the box, the particles stopped and the pairs pushed
+    apart added."""
     if runtime is None:
         return position
     if runtime.keep_in_domain:
@@ -148,6 +151,10 @@ def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Ten
     if runtime.contact_correction is not None:
         box = (simulator.lower, simulator.upper) if runtime.keep_in_domain else (None, None)
         settings = runtime.contact_correction
+        if previous is not None:
+            position, stopped = stop_at_kinematic(previous, position, radius, moving,
+                                                  float(settings["allowed_overlap"]), *box)
+            counts["stopped"] += stopped
         position, found = correct_overlaps(position, radius, moving, float(settings["allowed_overlap"]),
                                            int(settings["iterations"]), *box)
         counts["corrected"] += found
@@ -228,7 +235,7 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
-        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts)
+        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts, positions[t - 1])
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
@@ -238,18 +245,19 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
 
 def new_counts() -> dict:
     """Zeroed per-rollout counters: sleeping particles, graph nodes, edges and decoded nodes summed over the
-    steps, particles put back into the box, particle pairs pushed apart by the contact correction, and the
-    receivers the neighbour cap capped and the edges it dropped."""
-    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0, "corrected": 0, "capped": 0,
-            "dropped": 0}
+    steps, particles put back into the box, particles stopped at a kinematic particle and particle pairs
+    pushed apart by the contact correction, and the receivers the neighbour cap capped and the edges it
+    dropped."""
+    return {"asleep": 0, "nodes": 0, "edges": 0, "decoded": 0, "clamped": 0, "stopped": 0, "corrected": 0,
+            "capped": 0, "dropped": 0}
 
 
 def step_timing(counts: dict, steps: int) -> dict:
     """A rollout's ``timing``: every count per computed step, and the totals of the particle-steps put back
-    into the box, the pair-steps pushed apart by the contact correction, the receiver-steps capped and the
-    edges dropped by the neighbour cap."""
+    into the box, the particle-steps stopped at a kinematic particle and the pair-steps pushed apart by the
+    contact correction, the receiver-steps capped and the edges dropped by the neighbour cap."""
     timing = {f"{name}_per_step": value / steps for name, value in counts.items()}
-    for name in ("clamped", "corrected", "capped", "dropped"):
+    for name in ("clamped", "stopped", "corrected", "capped", "dropped"):
         timing[name] = counts[name]
     return timing
 

@@ -33,11 +33,13 @@ one's measured effect):
   to a minute: it pays only over many rollouts in one process (``python -m surrogate.bench_rollout``
   measures both).
 * ``contact_correction`` (not exact; null turns it off): ``{allowed_overlap, iterations}``. After
-  every predicted step (and after ``keep_in_domain``), pairs that overlap by more than
+  every predicted step (and after ``keep_in_domain``), a moving particle whose path from the frame
+  before passed a kinematic particle is stopped where it met it, then pairs that overlap by more than
   ``allowed_overlap`` times the smaller radius are pushed apart along their centre line, in at most
   ``iterations`` Jacobi sweeps (:mod:`surrogate.correction` gives the rule). The next step's
-  velocities are differences of the corrected positions. The rollout counts the pairs it corrected
-  (``corrected_pair_steps`` in the stability report), so the correction is never hidden.
+  velocities are differences of the corrected positions. The rollout counts the particles it stopped
+  and the pairs it corrected (``stopped_particle_steps``, ``corrected_pair_steps`` in the stability
+  report), so the correction is never hidden.
 """
 
 from __future__ import annotations

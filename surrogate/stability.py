@@ -120,6 +120,7 @@ def long_rollout(simulator: LearnedSimulator, runtime: rt.Runtime, sim: Sim, len
         "escaped_particles": int(outside.any(axis=0).sum()),
         "first_escape_frame": int(np.argmax(outside.any(axis=1))) if outside.any() else np.nan,
         "clamped_particle_steps": int(result.timing.get("clamped", 0)),
+        "stopped_particle_steps": int(result.timing.get("stopped", 0)),
         "corrected_pair_steps": int(result.timing.get("corrected", 0)),
         "frames_over_overlap_limit": int((overlaps > max_overlap).sum()),
         "max_overlap": float(overlaps.max()) if len(overlaps) else np.nan,

@@ -1,6 +1,7 @@
 """Contact correction: too-deep overlaps are pushed apart to the allowed one, kinematic particles stay."""
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -9,8 +10,8 @@ import torch
 from generators.blowup import overlap_fractions as overlap_fractions_np
 from surrogate import correction, runtime
 from surrogate.batched import rollout_batch
-from surrogate.correction import correct_overlaps, overlap_pairs
-from surrogate.rollout import rollout
+from surrogate.correction import correct_overlaps, overlap_pairs, stop_at_kinematic
+from surrogate.rollout import correct_step, new_counts, rollout
 
 
 def overlap_fractions(x: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
@@ -174,6 +175,102 @@ def test_a_single_or_resting_set_is_returned_unchanged():
 
 RT = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
                      sleep_speed=None, keep_in_domain=False, compile=False)
+
+
+def floor_and_faller(top: tuple[float, float], end: tuple[float, float]):
+    """A row of fixed unit discs on the floor y = 0 (centres at y = 1, 1.8 apart: touching pairs leave no
+    gap a unit disc fits through), a moving unit disc going from ``top`` to ``end`` in one step, and the
+    box [-10, 10] x [0, 10]."""
+    floor = torch.tensor([[x, 1.0] for x in np.arange(-5.4, 5.5, 1.8)], dtype=torch.float64)
+    previous = torch.cat([floor, torch.tensor([top], dtype=torch.float64)])
+    position = torch.cat([floor, torch.tensor([end], dtype=torch.float64)])
+    moving = torch.zeros(len(previous), dtype=torch.bool)
+    moving[-1] = True
+    box = torch.tensor([-10.0, 0.0], dtype=torch.float64), torch.tensor([10.0, 10.0], dtype=torch.float64)
+    return previous, position, torch.ones(len(previous), dtype=torch.float64), moving, box
+
+
+def deepest_on_floor(x: torch.Tensor) -> float:
+    """The largest overlap (in radii) of the moving unit disc (the last) with the floor's."""
+    return float((2.0 - (x[:-1] - x[-1]).norm(dim=-1)).max())
+
+
+def test_a_disc_that_falls_through_the_floor_in_one_step_is_stopped_on_it():
+    """The collapse's failure: a disc predicted 3.5 radii down in one step ends under the floor's fixed
+    discs; the box puts it back at y = 0, where the sweeps alone push it down along the wrong centre
+    lines and leave it stuck inside the floor. The path test stops it where it met the floor first."""
+    previous, position, r, moving, (lo, hi) = floor_and_faller((0.7, 3.2), (0.7, -0.3))
+    position[-1, 1] = 0.0                                            # keep_in_domain's clamp
+    alone, _ = correct_overlaps(position, r, moving, 0.05, 200, lo, hi)
+    assert float(alone[-1, 1]) < 1.0                                 # under the floor's centres: through it
+    assert deepest_on_floor(alone) > 0.3                             # and deep in it, for good
+    stopped, count = stop_at_kinematic(previous, position, r, moving, 0.05, lo, hi)
+    assert count == 1
+    # the first disc met is the one at x = 0 (0.7 from the path, the next 1.1): contact at distance c = 1.95
+    assert float((stopped[-1] - torch.tensor([0.0, 1.0], dtype=torch.float64)).norm()) >= 1.95 - 1e-9
+    out, _ = correct_overlaps(stopped, r, moving, 0.05, 200, lo, hi)
+    assert float(out[-1, 1]) > 2.5                                   # on top of the floor, in the notch
+    assert deepest_on_floor(out) <= 0.05 + 1e-6
+    torch.testing.assert_close(out[:-1], position[:-1], rtol=0, atol=0)   # the floor stays
+
+
+def test_the_stop_keeps_the_motion_along_the_contact():
+    """A path through a fixed disc's reach that ends past it, out of its reach again (no overlap at its
+    end, so the sweeps would not see it), is stopped where it entered and slides on along the contact:
+    at the contact p(s*) with normal n, the rest of the step (1 - s*) d without its normal part."""
+    previous = torch.tensor([[0.0, 0.0], [-3.0, 1.5]], dtype=torch.float64)
+    position = torch.tensor([[0.0, 0.0], [3.0, 1.5]], dtype=torch.float64)
+    r, moving = torch.ones(2, dtype=torch.float64), torch.tensor([False, True])
+    c = 2.0 - 0.05
+    s = (6.0 - 2 * (c**2 - 1.5**2) ** 0.5) / 2 / 6.0                 # where |(-3 + 6 s, 1.5)| = c, entering
+    contact = torch.tensor([-3.0 + 6.0 * s, 1.5], dtype=torch.float64)
+    n = contact / c
+    d = torch.tensor([6.0, 0.0], dtype=torch.float64)
+    expected = contact + (1 - s) * (d - (d @ n) * n)
+    out, count = stop_at_kinematic(previous, position, r, moving, 0.05)
+    assert count == 1
+    torch.testing.assert_close(out[1], expected)
+    assert float(out[1].norm()) > c and float(out[1, 0]) > 0       # past the disc, never inside its reach
+    graze = torch.tensor([[0.0, 0.0], [-1.0, 1.95 - 1e-3]], dtype=torch.float64)             # a sliding step
+    untouched, count = stop_at_kinematic(graze, graze + torch.tensor([[0.0, 0.0], [2.0, 0.0]], dtype=torch.float64),
+                                         r, moving, 0.0)
+    assert count == 0 and float(untouched[1, 0]) == 1.0
+
+
+def test_a_moving_wall_pushes_the_disc_it_passes_ahead_of_it():
+    """Relative motion: a fixed (kinematic) disc moving 5 radii in one step through a resting disc
+    leaves it in front, at the allowed distance, not behind."""
+    previous = torch.tensor([[0.0, 0.0], [2.5, 0.0]], dtype=torch.float64)
+    position = torch.tensor([[5.0, 0.0], [2.5, 0.0]], dtype=torch.float64)
+    out, count = stop_at_kinematic(previous, position, torch.ones(2, dtype=torch.float64),
+                                   torch.tensor([False, True]), 0.05)
+    assert count == 1
+    torch.testing.assert_close(out, torch.tensor([[5.0, 0.0], [6.95, 0.0]], dtype=torch.float64))
+
+
+def test_a_disc_pressed_into_a_wall_or_free_of_walls_is_left_to_the_sweeps():
+    """A path that ends inside the allowed distance on the near side, a path that misses, and a set with
+    no kinematic particle are not touched (the sweeps' case; the meteorite has no kinematic particle)."""
+    previous, position, r, moving, (lo, hi) = floor_and_faller((0.7, 3.2), (0.7, 2.4))     # pressed in
+    out, count = stop_at_kinematic(previous, position, r, moving, 0.05, lo, hi)
+    assert count == 0 and torch.equal(out, position)
+    previous, position, r, moving, _ = floor_and_faller((0.7, 3.2), (4.0, 6.0))             # away
+    out, count = stop_at_kinematic(previous, position, r, moving, 0.05)
+    assert count == 0 and torch.equal(out, position)
+    out, count = stop_at_kinematic(previous, position, r, torch.ones(len(r), dtype=torch.bool), 0.05)
+    assert count == 0 and torch.equal(out, position)
+
+
+def test_the_rollout_step_stops_paths_only_where_it_has_the_frame_before():
+    previous, position, r, moving, (lo, hi) = floor_and_faller((0.7, 3.2), (0.7, -0.3))
+    walls = replace(RT, keep_in_domain=True, contact_correction={"allowed_overlap": 0.05, "iterations": 200})
+    box = SimpleNamespace(lower=lo, upper=hi)
+    counts = new_counts()
+    out = correct_step(position, moving, r, walls, box, counts, previous)
+    assert counts["clamped"] == 1 and counts["stopped"] == 1 and float(out[-1, 1]) > 2.5
+    counts = new_counts()
+    out = correct_step(position, moving, r, walls, box, counts)
+    assert counts["stopped"] == 0 and float(out[-1, 1]) < 1.0
 
 
 def test_runtime_takes_contact_correction_as_an_optional_key():
