@@ -28,7 +28,10 @@ summed pushes (a 20 x 20 square lattice of unit discs at spacing 1.8 inside fixe
 to 1.0 radii in 200 sweeps summed, to 0.40 averaged). With the box given, the
 moving particles are then put back into it (as ``keep_in_domain`` does), so the correction never
 pushes a particle out. ``iterations`` sweeps at most; the sweeps stop early once no pair overlaps
-too much.
+by more than the allowed overlap plus ``tolerance`` (a fraction of the smaller radius, as ``a``).
+Every sweep still pushes each pair deeper than ``a`` to ``a``; the tolerance only ends them. Without it
+(0) a deep pile never ends early: a pushed pair lands exactly on the allowance and its neighbours'
+pushes move it back by rounding, so every frame with a few deep pairs runs every sweep.
 
 Pairs are searched with a Verlet list, as DEM codes search contacts: the pairs closer than
 2 max(r) + s (no pair closer than r_i + r_j is farther apart than 2 max(r)), with the skin
@@ -41,7 +44,7 @@ sweep against the searches.
 
 **A kinematic particle is not passed through** (:func:`stop_at_kinematic`, before the sweeps, where the
 rollout gives the frame before the step). A learned step can carry a fast particle through a wall in
-one frame (the collapse: a disc falling 2 radii per frame went between the floor's fixed discs, the
+one frame (a disc falling 2 radii per frame onto a floor of fixed discs went between them, the
 box put it back under them, and the sweeps then pushed it along the wrong centre line, down, for the
 rest of the rollout: an overlap of 0.65 radii the sweeps can never remove). The sweeps see only where
 a particle ends, so the path is tested: a moving particle i and a kinematic particle k move in
@@ -84,16 +87,19 @@ def overlap_pairs(position: torch.Tensor, radius: torch.Tensor, moving: torch.Te
 
 def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor, allowed_overlap: float,
                      iterations: int, lower: torch.Tensor | None = None,
-                     upper: torch.Tensor | None = None, *, skin: float = SKIN) -> tuple[torch.Tensor, int]:
+                     upper: torch.Tensor | None = None, *, skin: float = SKIN,
+                     tolerance: float = 0.0) -> tuple[torch.Tensor, int]:
     """``position`` [N, D] with the overlaps above ``allowed_overlap`` (a fraction of the smaller
     radius) pushed apart in at most ``iterations`` Jacobi sweeps (module docstring), the moving
     particles kept in the box ``[lower, upper]`` when it is given; ``radius`` [N], ``moving`` [N]
     bool; ``skin`` the Verlet list's, in largest radii (0: a search before every sweep that follows
-    motion). Returns the corrected positions (a new tensor; ``position`` is left as it is) and the
+    motion); ``tolerance`` ends the sweeps once no pair overlaps more than ``allowed_overlap`` plus it
+    (module docstring). Returns the corrected positions (a new tensor; ``position`` is left as it is) and the
     number of pairs that overlapped too much before the correction."""
-    if allowed_overlap < 0 or iterations < 1 or skin < 0:
+    if allowed_overlap < 0 or iterations < 1 or skin < 0 or tolerance < 0:
         raise ValueError(f"contact correction: allowed_overlap = {allowed_overlap!r} must be >= 0, "
-                         f"iterations = {iterations!r} >= 1 and skin = {skin!r} >= 0")
+                         f"iterations = {iterations!r} >= 1, skin = {skin!r} >= 0 and tolerance = "
+                         f"{tolerance!r} >= 0")
     x = position.clone()
     n, dim = x.shape
     if n < 2 or not bool(moving.any()):
@@ -113,6 +119,7 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
             i, j = overlap_pairs(x, r, moving, reach)
             ri, rj = r.index_select(0, i), r.index_select(0, j)
             closest = ri + rj - allowed_overlap * torch.minimum(ri, rj)     # the allowed centre distance
+            slack = tolerance * torch.minimum(ri, rj)
             mi, mj = inverse_mass.index_select(0, i), inverse_mass.index_select(0, j)
             share_i, share_j = mi / (mi + mj), mj / (mi + mj)             # mi + mj > 0: a moving particle
             counts_i, counts_j = (mi > 0).to(x.dtype), (mj > 0).to(x.dtype)
@@ -122,7 +129,7 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
         over = excess > 0
         if sweep == 0:
             found = int(over.sum())
-        if not bool(over.any()):
+        if not bool((excess > slack).any()):
             break
         normal = torch.where((distance > 0).unsqueeze(-1), gap / distance.clamp(min=torch.finfo(x.dtype).tiny)
                              .unsqueeze(-1), first_axis)
@@ -179,8 +186,8 @@ def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: to
     stopped, slot = torch.unique(i, return_inverse=True)
     first = torch.full_like(stopped, len(i)).scatter_reduce(0, slot, torch.arange(len(i), device=x.device), "amin")
     k, s, d, contact, normal = (t[first] for t in (k, s, d, contact, normal))
-    slide = d - (d * normal).sum(-1, keepdim=True) * normal
-    x[stopped] = x.index_select(0, k) + contact + (1 - s).unsqueeze(-1) * slide
+    along = d - (d * normal).sum(-1, keepdim=True) * normal             # the step's part along the contact
+    x[stopped] = x.index_select(0, k) + contact + (1 - s).unsqueeze(-1) * along
     if lower is not None and upper is not None:
         x[stopped] = torch.maximum(torch.minimum(x[stopped], upper.to(x)), lower.to(x))
     return x, int(stopped.numel())

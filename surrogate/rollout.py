@@ -156,7 +156,8 @@ def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Ten
                                                   float(settings["allowed_overlap"]), *box)
             counts["stopped"] += stopped
         position, found = correct_overlaps(position, radius, moving, float(settings["allowed_overlap"]),
-                                           int(settings["iterations"]), *box)
+                                           int(settings["iterations"]), *box,
+                                           tolerance=float(settings.get("tolerance", 0.0)))
         counts["corrected"] += found
     return position
 

@@ -32,11 +32,13 @@ one's measured effect):
   input kind (dtype, with or without properties or decoded subsets) compiles, which takes seconds
   to a minute: it pays only over many rollouts in one process (``python -m surrogate.bench_rollout``
   measures both).
-* ``contact_correction`` (not exact; null turns it off): ``{allowed_overlap, iterations}``. After
+* ``contact_correction`` (not exact; null turns it off): ``{allowed_overlap, iterations}`` and
+  optionally ``tolerance`` (0 when absent). After
   every predicted step (and after ``keep_in_domain``), a moving particle whose path from the frame
   before passed a kinematic particle is stopped where it met it, then pairs that overlap by more than
   ``allowed_overlap`` times the smaller radius are pushed apart along their centre line, in at most
-  ``iterations`` Jacobi sweeps (:mod:`surrogate.correction` gives the rule). The next step's
+  ``iterations`` Jacobi sweeps, ended early once no pair overlaps by more than ``allowed_overlap`` plus
+  ``tolerance`` (:mod:`surrogate.correction` gives the rule). The next step's
   velocities are differences of the corrected positions. The rollout counts the particles it stopped
   and the pairs it corrected (``stopped_particle_steps``, ``corrected_pair_steps`` in the stability
   report), so the correction is never hidden.
@@ -99,19 +101,27 @@ class Runtime:
 
 
 CONTACT_CORRECTION_KEYS = ("allowed_overlap", "iterations")
+CONTACT_CORRECTION_OPTIONAL = ("tolerance",)     # absent: 0, the sweeps end only when no pair is too deep
 
 
 def check_contact_correction(cfg: dict) -> None:
-    """Refuse a ``runtime.contact_correction`` that is not ``{allowed_overlap: >= 0, iterations: >= 1}``."""
-    if not isinstance(cfg, dict) or set(cfg) != set(CONTACT_CORRECTION_KEYS):
+    """Refuse a ``runtime.contact_correction`` that is not ``{allowed_overlap: >= 0, iterations: >= 1}``
+    with an optional ``tolerance: >= 0``."""
+    if (not isinstance(cfg, dict) or not set(CONTACT_CORRECTION_KEYS) <= set(cfg)
+            or not set(cfg) <= set(CONTACT_CORRECTION_KEYS + CONTACT_CORRECTION_OPTIONAL)):
         raise ValueError(f"runtime.contact_correction = {cfg!r}: null or a mapping with exactly the keys "
-                         f"{', '.join(CONTACT_CORRECTION_KEYS)}")
+                         f"{', '.join(CONTACT_CORRECTION_KEYS)} and optionally "
+                         f"{', '.join(CONTACT_CORRECTION_OPTIONAL)}")
     overlap, iterations = cfg["allowed_overlap"], cfg["iterations"]
     if isinstance(overlap, bool) or not isinstance(overlap, int | float) or not overlap >= 0:
         raise ValueError(f"runtime.contact_correction.allowed_overlap = {overlap!r}: a fraction of the smaller "
                          f"radius, >= 0")
     if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
         raise ValueError(f"runtime.contact_correction.iterations = {iterations!r}: an integer >= 1")
+    tolerance = cfg.get("tolerance", 0)
+    if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not tolerance >= 0:
+        raise ValueError(f"runtime.contact_correction.tolerance = {tolerance!r}: a fraction of the smaller "
+                         f"radius, >= 0")
 
 
 def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:

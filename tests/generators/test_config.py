@@ -64,11 +64,12 @@ def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
         config.load({"slide_samer": {"train": {"lr_cycles": 0}}})
 
 
-def test_contact_correction_is_null_or_its_two_keys():
+def test_contact_correction_is_null_or_its_two_keys_and_a_tolerance():
     defaults = config.load()
     for scene in ("slide", "meteorite", "shear"):         # chosen on each scene's valid split (docs/surrogate.md)
         assert defaults[scene]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 50}
-    assert defaults["collapse"]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 1000}
+    assert defaults["collapse"]["runtime"]["contact_correction"] == {"allowed_overlap": 0.05, "iterations": 1000,
+                                                                     "tolerance": 0.001}
     assert config.load({"slide": {"runtime": {"contact_correction": None}}})["slide"]["runtime"]["contact_correction"] \
         is None
     on = {"allowed_overlap": 0.01, "iterations": 20}
@@ -79,6 +80,9 @@ def test_contact_correction_is_null_or_its_two_keys():
         config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": 0.01, "iteration": 20}}}})
     with pytest.raises(config.ConfigError, match=r"contact_correction\.allowed_overlap' = -0\.1.*minimum of 0"):
         config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": -0.1, "iterations": 20}}}})
+    with pytest.raises(config.ConfigError, match=r"contact_correction\.tolerance' = -0\.01.*minimum of 0"):
+        config.load({"slide": {"runtime": {"contact_correction": {"allowed_overlap": 0.1, "iterations": 20,
+                                                                  "tolerance": -0.01}}}})
 
 
 def test_unknown_scale_lists_allowed_scales():

@@ -165,6 +165,29 @@ def test_bad_settings_are_refused():
         correct_overlaps(x, r, moving, 0.1, 0)
     with pytest.raises(ValueError, match="skin = -0.5"):
         correct_overlaps(x, r, moving, 0.1, 1, skin=-0.5)
+    with pytest.raises(ValueError, match="tolerance = -0.01"):
+        correct_overlaps(x, r, moving, 0.1, 1, tolerance=-0.01)
+
+
+def test_the_tolerance_ends_the_sweeps_at_the_first_sweep_within_it():
+    """A pile pressed together: without a tolerance the sweeps run to the last (a pushed pair lands on
+    the allowance and its neighbours move it back); with one, they end after the first sweep that leaves
+    no pair deeper than allowed + tolerance, every sweep until then being the exact one (a search before
+    every sweep, skin 0, so that one sweep at a time is the same arithmetic)."""
+    n, allowed, tolerance, most = 40, 0.05, 0.01, 1000
+    x, r, moving = squeezed_packing(n, 2, seed=3)
+    either_moves = (moving.unsqueeze(0) | moving.unsqueeze(1))[tuple(torch.triu_indices(n, n, 1))]
+    sweeps, deepest = [x], []
+    for _ in range(most):
+        sweeps.append(correct_overlaps(sweeps[-1], r, moving, allowed, 1, skin=0.0)[0])
+        deepest.append(float(overlap_fractions(sweeps[-1], r)[either_moves].max()))
+    first = next(k for k, value in enumerate(deepest, start=1) if value <= allowed + tolerance)
+    assert 10 < first < most and deepest[-1] > allowed                # never exactly within the allowance
+    exact, _ = correct_overlaps(x, r, moving, allowed, most, skin=0.0)
+    assert torch.equal(exact, sweeps[-1])
+    assert torch.equal(correct_overlaps(x, r, moving, allowed, most, skin=0.0, tolerance=0.0)[0], exact)
+    ended, _ = correct_overlaps(x, r, moving, allowed, most, skin=0.0, tolerance=tolerance)
+    assert torch.equal(ended, sweeps[first])
 
 
 def test_a_single_or_resting_set_is_returned_unchanged():
@@ -286,6 +309,10 @@ def test_runtime_takes_contact_correction_as_an_optional_key():
         replace(RT, contact_correction={"allowed_overlap": 0.01, "iterations": 0})
     with pytest.raises(ValueError, match="allowed_overlap = -1"):
         replace(RT, contact_correction={"allowed_overlap": -1, "iterations": 3})
+    tolerant = {"allowed_overlap": 0.01, "iterations": 5, "tolerance": 0.001}
+    assert runtime.Runtime.from_config({**RT.as_dict(), "contact_correction": tolerant}).contact_correction == tolerant
+    with pytest.raises(ValueError, match="tolerance = -0.001"):
+        replace(RT, contact_correction={**tolerant, "tolerance": -0.001})
 
 
 def max_overlap(position: np.ndarray, sim, start: int) -> float:
