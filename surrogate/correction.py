@@ -175,7 +175,7 @@ def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: to
     dd, pd, pp = (d * d).sum(-1), (p0 * d).sum(-1), (p0 * p0).sum(-1)
     root = pd * pd - dd * (pp - c * c)
     s = (-pd - root.clamp(min=0).sqrt()) / dd.clamp(min=torch.finfo(x.dtype).tiny)
-    meets = (pp >= c * c) & (dd > 0) & (pd < 0) & (root >= 0) & (s <= 1)
+    meets = (c > 0) & (pp >= c * c) & (dd > 0) & (pd < 0) & (root >= 0) & (s <= 1)   # c <= 0: no contact
     contact = p0 + s.unsqueeze(-1) * d
     normal = contact / c.unsqueeze(-1)
     passes = meets & (((p0 + d) * normal).sum(-1) < 0)

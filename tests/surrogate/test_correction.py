@@ -282,6 +282,9 @@ def test_a_disc_pressed_into_a_wall_or_free_of_walls_is_left_to_the_sweeps():
     assert count == 0 and torch.equal(out, position)
     out, count = stop_at_kinematic(previous, position, r, torch.ones(len(r), dtype=torch.bool), 0.05)
     assert count == 0 and torch.equal(out, position)
+    previous, position, r, moving, _ = floor_and_faller((0.2, 3.2), (0.2, 1.3))            # deep, but
+    out, count = stop_at_kinematic(previous, position, r, moving, 2.5)      # an allowance past any contact
+    assert count == 0 and torch.equal(out, position)
 
 
 def test_the_rollout_step_stops_paths_only_where_it_has_the_frame_before():
