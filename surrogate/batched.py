@@ -94,8 +94,8 @@ def rollout_batch(simulator: LearnedSimulator | Ensemble, sims: list[Sim], runti
             if not torch.isfinite(nxt).all():
                 first_bad[i] = t
                 continue
-            positions[i][t] = correct_step(nxt, ~sims[i].kinematic, radii[i], runtime, simulator, counts[i],
-                                          positions[i][t - 1])
+            before = sims[i].position[t - 1].to(dtype) if forced else positions[i][t - 1]   # the step's start
+            positions[i][t] = correct_step(nxt, ~sims[i].kinematic, radii[i], runtime, simulator, counts[i], before)
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     size = len(sims)

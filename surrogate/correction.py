@@ -1,5 +1,6 @@
-"""Contact correction of a predicted frame (runtime switch ``contact_correction``): overlapping particles
-are pushed apart along their centre line until every overlap is at most the allowed one.
+"""Contact correction of a predicted frame (runtime switch ``contact_correction``): a particle whose
+step passed a kinematic particle is stopped at it, then overlapping particles are pushed apart along
+their centre line until every overlap is at most the allowed one (plus an optional tolerance).
 
 A learned rollout lets particles overlap far more than the DEM does (the DEM's largest overlap is
 about 0.01 of the smaller radius; an untreated surrogate's reaches radii). A pair i < j of particles
@@ -50,22 +51,25 @@ rest of the rollout: an overlap of 0.65 radii the sweeps can never remove). The 
 a particle ends, so the path is tested: a moving particle i and a kinematic particle k move in
 straight lines from the frame before to the prediction, their relative position p(s) = p_0 + s d,
 0 <= s <= 1, and the path enters the allowed distance c = r_i + r_k - a min(r_i, r_k) at the
-smallest root s* of |p_0 + s d| = c (from outside, |p_0| >= c). Where its end p_1 = p_0 + d lies
-past k (p_1 . n < 0, n = p(s*) / c the normal where it entered), the sweeps' push along the end's
-centre line would complete the passage (or, with p_1 outside c again, not see it), so i is stopped
-where it entered and the rest of its relative step slides on along the contact (the normal part
-removed, as a wall takes it):
+smallest root s* of |p_0 + s d| = c; a particle that starts inside it (|p_0| < c: one resting on a
+wall, within the sweeps' rounding or tolerance) is in contact from s* = 0, at p(0) = p_0. Where its
+end p_1 = p_0 + d lies past k (p_1 . n < 0, n = p(s*) / |p(s*)| the normal where the contact began),
+the sweeps' push along the end's centre line would complete the passage (or, with p_1 outside c
+again, not see it), so i is stopped where the contact began and the rest of its relative step
+slides on along the contact (the normal part removed, as a wall takes it):
 
     p_1' = p(s*) + (1 - s*) (d - (d . n) n).
 
-Of several such partners the first one met (smallest s*) stops i; what remains is left to the sweeps.
+Of several such partners the first one met (smallest s*) stops i; what remains is left to the sweeps
+(the slid rest of the step is not tested again, and a partner met earlier that i does not pass does
+not stop it).
 Paths that end on the near side of k are the sweeps' (a particle pressed into a wall is pushed out
 along its centre line, as before; one that grazes a wall's reach in a sliding step is left as it
 is), so the test changes nothing where no particle passes a wall.
 Pairs of moving particles are not tested: both are predicted, and neither is a wall. The pairs are
 searched once, within 2 max(r) plus the largest moving and kinematic steps of the frame, at most
-``PATH_REACH`` max(r) in all: a step longer than that (a blown-up rollout) is tested only against the
-partners within that reach of where it ends.
+``PATH_REACH`` max(r) in all: where a moving and a kinematic step add up to more than
+``PATH_REACH`` - 2 max(r) (a blown-up rollout), the pair is tested only if it ends within that reach.
 """
 
 from __future__ import annotations
@@ -95,7 +99,8 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
     bool; ``skin`` the Verlet list's, in largest radii (0: a search before every sweep that follows
     motion); ``tolerance`` ends the sweeps once no pair overlaps more than ``allowed_overlap`` plus it
     (module docstring). Returns the corrected positions (a new tensor; ``position`` is left as it is) and the
-    number of pairs that overlapped too much before the correction."""
+    number of pairs that overlapped too much (by more than ``allowed_overlap`` plus ``tolerance``) before
+    the correction."""
     if allowed_overlap < 0 or iterations < 1 or skin < 0 or tolerance < 0:
         raise ValueError(f"contact correction: allowed_overlap = {allowed_overlap!r} must be >= 0, "
                          f"iterations = {iterations!r} >= 1, skin = {skin!r} >= 0 and tolerance = "
@@ -128,7 +133,7 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
         excess = closest - distance
         over = excess > 0
         if sweep == 0:
-            found = int(over.sum())
+            found = int((excess > slack).sum())
         if not bool((excess > slack).any()):
             break
         normal = torch.where((distance > 0).unsqueeze(-1), gap / distance.clamp(min=torch.finfo(x.dtype).tiny)
@@ -175,9 +180,11 @@ def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: to
     dd, pd, pp = (d * d).sum(-1), (p0 * d).sum(-1), (p0 * p0).sum(-1)
     root = pd * pd - dd * (pp - c * c)
     s = (-pd - root.clamp(min=0).sqrt()) / dd.clamp(min=torch.finfo(x.dtype).tiny)
-    meets = (c > 0) & (pp >= c * c) & (dd > 0) & (pd < 0) & (root >= 0) & (s <= 1)   # c <= 0: no contact
+    inside = pp < c * c                                                 # in contact from the start: s* = 0
+    s = torch.where(inside, torch.zeros_like(s), s)
+    meets = (c > 0) & (dd > 0) & (inside & (pp > 0) | (pd < 0) & (root >= 0) & (s <= 1))   # c <= 0: no contact
     contact = p0 + s.unsqueeze(-1) * d
-    normal = contact / c.unsqueeze(-1)
+    normal = contact / contact.norm(dim=-1, keepdim=True).clamp(min=torch.finfo(x.dtype).tiny)
     passes = meets & (((p0 + d) * normal).sum(-1) < 0)
     if not bool(passes.any()):
         return x, 0

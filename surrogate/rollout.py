@@ -236,7 +236,7 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
         if not torch.isfinite(nxt).all():
             first_bad = t
             break
-        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts, positions[t - 1])
+        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts, window[-1])
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed

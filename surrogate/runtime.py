@@ -64,7 +64,7 @@ class Runtime:
     sleep_speed: float | None
     keep_in_domain: bool
     compile: bool
-    contact_correction: dict | None = None      # {allowed_overlap, iterations}; None: off
+    contact_correction: dict | None = None      # {allowed_overlap, iterations[, tolerance]}; None: off
 
     def __post_init__(self):
         if self.precision not in PRECISIONS:

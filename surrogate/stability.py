@@ -5,7 +5,7 @@ A long rollout runs ``length`` times the recorded window; beyond the last record
 kinematic particles stay where the data left them. It reports, never hides: the first
 non-finite frame, particles that leave the dataset's box (or, with the runtime switch
 ``keep_in_domain``, how many times a particle was put back on a box face; with ``contact_correction``,
-how many times a pair was pushed apart), the overlap
+how many times a particle was stopped at a kinematic particle it passed and a pair was pushed apart), the overlap
 distribution and the kinetic energy per frame, the growth of the error per step over the recorded
 window, the largest speed at the end (a flow should come to rest, not drift or vibrate), and the
 first frame that leaves the physical envelope.

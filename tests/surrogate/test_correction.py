@@ -237,6 +237,35 @@ def test_a_disc_that_falls_through_the_floor_in_one_step_is_stopped_on_it():
     torch.testing.assert_close(out[:-1], position[:-1], rtol=0, atol=0)   # the floor stays
 
 
+def test_a_disc_resting_on_the_floor_within_the_tolerance_is_stopped_too():
+    """A disc left by the sweeps just inside the allowed distance (their rounding, or their tolerance)
+    starts the step in contact: a step through the floor from there is stopped where it was."""
+    c = 2.0 - 0.05
+    resting = (0.9, 1.0 + ((c - 1e-4) ** 2 - 0.81) ** 0.5)          # in the notch, 1e-4 inside c of both
+    previous, position, r, moving, (lo, hi) = floor_and_faller(resting, (0.9, 0.0))
+    stopped, count = stop_at_kinematic(previous, position, r, moving, 0.05, lo, hi)
+    assert count == 1
+    out, _ = correct_overlaps(stopped, r, moving, 0.05, 200, lo, hi)
+    assert float(out[-1, 1]) > 2.5 and deepest_on_floor(out) <= 0.05 + 1e-6
+    alone, _ = correct_overlaps(position, r, moving, 0.05, 200, lo, hi)
+    assert float(alone[-1, 1]) < 1.0                                 # without the test: through the floor
+
+
+def test_several_stopped_discs_are_each_stopped_as_alone():
+    previous, position, r, moving, (lo, hi) = floor_and_faller((0.7, 3.2), (0.7, 0.0))
+    second_before = torch.tensor([[-2.9, 4.0]], dtype=torch.float64)
+    second_after = torch.tensor([[-2.5, 0.2]], dtype=torch.float64)
+    both, count = stop_at_kinematic(torch.cat([previous, second_before]), torch.cat([position, second_after]),
+                                    torch.ones(len(r) + 1, dtype=torch.float64), torch.cat([moving, moving[-1:]]),
+                                    0.05, lo, hi)
+    assert count == 2
+    first, _ = stop_at_kinematic(previous, position, r, moving, 0.05, lo, hi)
+    floor = torch.cat([previous[:-1], second_before]), torch.cat([position[:-1], second_after])
+    second, _ = stop_at_kinematic(*floor, r, moving, 0.05, lo, hi)
+    torch.testing.assert_close(both[-2], first[-1], rtol=0, atol=0)
+    torch.testing.assert_close(both[-1], second[-1], rtol=0, atol=0)
+
+
 def test_the_stop_keeps_the_motion_along_the_contact():
     """A path through a fixed disc's reach that ends past it, out of its reach again (no overlap at its
     end, so the sweeps would not see it), is stopped where it entered and slides on along the contact:
@@ -363,6 +392,38 @@ def test_the_switch_off_or_idle_leaves_the_rollout_bit_identical(untrained):
     single = rollout(simulator, sim, runtime=walls)
     assert all(b.timing["corrected"] == 0 for b in batch)
     np.testing.assert_allclose(batch[0].position, single.position, rtol=0, atol=1e-5)
+
+
+@pytest.mark.engine
+@pytest.mark.parametrize("forced", [False, True])
+def test_rollouts_give_the_correction_the_step_start_and_the_tolerance(untrained, monkeypatch, forced):
+    """Each step's path test starts from the frame the step started from (the predicted one, or the
+    data's in a forced rollout), and the sweeps get the configured tolerance, alone and batched."""
+    import surrogate.rollout as rollout_module
+    simulator, sim = untrained
+    seen = {"previous": [], "tolerance": []}
+
+    def stop(previous, position, *args):
+        seen["previous"].append(previous.clone())
+        return correction.stop_at_kinematic(previous, position, *args)
+
+    def sweeps(*args, tolerance=0.0, **kwargs):
+        seen["tolerance"].append(tolerance)
+        return correction.correct_overlaps(*args, tolerance=tolerance, **kwargs)
+
+    monkeypatch.setattr(rollout_module, "stop_at_kinematic", stop)
+    monkeypatch.setattr(rollout_module, "correct_overlaps", sweeps)
+    on_rt = replace(RT, contact_correction={"allowed_overlap": 0.05, "iterations": 3, "tolerance": 0.002})
+    k = simulator.history
+    for run in (lambda: rollout(simulator, sim, runtime=on_rt, forced=forced),
+                lambda: rollout_batch(simulator, [sim], on_rt, forced=forced)[0]):
+        seen["previous"].clear(), seen["tolerance"].clear()
+        result = run()
+        starts = sim.position.numpy() if forced else result.position
+        assert len(seen["previous"]) == sim.n_frames - k
+        for t, previous in enumerate(seen["previous"], start=k):
+            np.testing.assert_array_equal(previous.numpy(), starts[t - 1])
+        assert seen["tolerance"] == [0.002] * (sim.n_frames - k)
 
 
 @pytest.mark.engine
