@@ -132,9 +132,10 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
         distance = gap.norm(dim=-1)
         excess = closest - distance
         over = excess > 0
+        beyond = excess > slack                                           # too deep, past the tolerance
         if sweep == 0:
-            found = int((excess > slack).sum())
-        if not bool((excess > slack).any()):
+            found = int(beyond.sum())
+        if not bool(beyond.any()):
             break
         normal = torch.where((distance > 0).unsqueeze(-1), gap / distance.clamp(min=torch.finfo(x.dtype).tiny)
                              .unsqueeze(-1), first_axis)

@@ -151,12 +151,11 @@ def correct_step(position: torch.Tensor, moving: torch.Tensor, radius: torch.Ten
     if runtime.contact_correction is not None:
         box = (simulator.lower, simulator.upper) if runtime.keep_in_domain else (None, None)
         settings = runtime.contact_correction
+        allowed = float(settings["allowed_overlap"])
         if previous is not None:
-            position, stopped = stop_at_kinematic(previous, position, radius, moving,
-                                                  float(settings["allowed_overlap"]), *box)
+            position, stopped = stop_at_kinematic(previous, position, radius, moving, allowed, *box)
             counts["stopped"] += stopped
-        position, found = correct_overlaps(position, radius, moving, float(settings["allowed_overlap"]),
-                                           int(settings["iterations"]), *box,
+        position, found = correct_overlaps(position, radius, moving, allowed, int(settings["iterations"]), *box,
                                            tolerance=float(settings.get("tolerance", 0.0)))
         counts["corrected"] += found
     return position

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from generators.blowup import max_overlap_fraction
 from generators.blowup import overlap_fractions as overlap_fractions_np
 from surrogate import correction, runtime
 from surrogate.batched import rollout_batch
@@ -176,11 +177,10 @@ def test_the_tolerance_ends_the_sweeps_at_the_first_sweep_within_it():
     every sweep, skin 0, so that one sweep at a time is the same arithmetic)."""
     n, allowed, tolerance, most = 40, 0.05, 0.01, 1000
     x, r, moving = squeezed_packing(n, 2, seed=3)
-    either_moves = (moving.unsqueeze(0) | moving.unsqueeze(1))[tuple(torch.triu_indices(n, n, 1))]
     sweeps, deepest = [x], []
     for _ in range(most):
         sweeps.append(correct_overlaps(sweeps[-1], r, moving, allowed, 1, skin=0.0)[0])
-        deepest.append(float(overlap_fractions(sweeps[-1], r)[either_moves].max()))
+        deepest.append(max_overlap_fraction(sweeps[-1].numpy(), r.numpy(), ~moving.numpy()))
     first = next(k for k, value in enumerate(deepest, start=1) if value <= allowed + tolerance)
     assert 10 < first < most and deepest[-1] > allowed                # never exactly within the allowance
     exact, _ = correct_overlaps(x, r, moving, allowed, most, skin=0.0)
@@ -214,8 +214,11 @@ def floor_and_faller(top: tuple[float, float], end: tuple[float, float]):
 
 
 def deepest_on_floor(x: torch.Tensor) -> float:
-    """The largest overlap (in radii) of the moving unit disc (the last) with the floor's."""
-    return float((2.0 - (x[:-1] - x[-1]).norm(dim=-1)).max())
+    """The largest overlap (in radii) of the moving disc (the last) with the floor's (the floor's own
+    overlaps are its geometry)."""
+    kinematic = np.ones(len(x), dtype=bool)
+    kinematic[-1] = False
+    return max_overlap_fraction(x.numpy(), np.ones(len(x)), kinematic)
 
 
 def test_a_disc_that_falls_through_the_floor_in_one_step_is_stopped_on_it():
