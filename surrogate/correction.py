@@ -74,6 +74,8 @@ searched once, within 2 max(r) plus the largest moving and kinematic steps of th
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import torch
 
 from surrogate.graph import radius_pairs
@@ -152,18 +154,34 @@ def correct_overlaps(position: torch.Tensor, radius: torch.Tensor, moving: torch
     return x, found
 
 
-def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor,
-                      allowed_overlap: float, lower: torch.Tensor | None = None,
-                      upper: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
-    """``position`` [N, D] with every moving particle whose path from ``previous`` [N, D] passed a
-    kinematic particle stopped where it met it and slid along the contact (module docstring), kept in
-    the box ``[lower, upper]`` where it is given. Returns the positions (a new tensor) and the number of
-    particles stopped."""
-    x = position.clone()
+class Passages(NamedTuple):
+    """The (moving, kinematic) pairs whose relative path passed (module docstring), one row per pair:
+    ``particle`` the moving one, ``partner`` the kinematic one, ``s`` the fraction of the step at which the
+    contact began, ``step`` the relative step d, ``contact`` the relative position p(s*) there and ``normal``
+    n = p(s*) / |p(s*)|."""
+
+    particle: torch.Tensor
+    partner: torch.Tensor
+    s: torch.Tensor
+    step: torch.Tensor
+    contact: torch.Tensor
+    normal: torch.Tensor
+
+
+def kinematic_passages(previous: torch.Tensor, position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor,
+                       allowed_overlap: float) -> Passages:
+    """Every pair of a moving and a kinematic particle whose straight relative path from ``previous`` [N, D] to
+    ``position`` [N, D] entered (or started inside) their allowed distance c = r_i + r_k - ``allowed_overlap``
+    min(r_i, r_k) and ended past the partner (module docstring): the path test of :func:`stop_at_kinematic`,
+    also the plausibility measure ``Through wall`` (with ``allowed_overlap`` 0, the contact distance)."""
+    x = position
     kinematic = ~moving
-    if not bool(kinematic.any()) or not bool(moving.any()):
-        return x, 0
     r = radius.to(device=x.device, dtype=x.dtype)
+    empty = torch.zeros(0, dtype=torch.long, device=x.device)
+    none = Passages(empty, empty, x.new_zeros(0), x.new_zeros(0, x.shape[-1]), x.new_zeros(0, x.shape[-1]),
+                    x.new_zeros(0, x.shape[-1]))
+    if not bool(kinematic.any()) or not bool(moving.any()):
+        return none
     before = previous.to(x)
     step = x - before
     length = step.norm(dim=-1)
@@ -188,9 +206,23 @@ def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: to
     normal = contact / contact.norm(dim=-1, keepdim=True).clamp(min=torch.finfo(x.dtype).tiny)
     passes = meets & (((p0 + d) * normal).sum(-1) < 0)
     if not bool(passes.any()):
+        return none
+    return Passages(i[passes], k[passes], s[passes], d[passes], contact[passes], normal[passes])
+
+
+def stop_at_kinematic(previous: torch.Tensor, position: torch.Tensor, radius: torch.Tensor, moving: torch.Tensor,
+                      allowed_overlap: float, lower: torch.Tensor | None = None,
+                      upper: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
+    """``position`` [N, D] with every moving particle whose path from ``previous`` [N, D] passed a
+    kinematic particle stopped where it met it and slid along the contact (module docstring), kept in
+    the box ``[lower, upper]`` where it is given. Returns the positions (a new tensor) and the number of
+    particles stopped."""
+    x = position.clone()
+    passed = kinematic_passages(previous, x, radius, moving, allowed_overlap)
+    if not len(passed.particle):
         return x, 0
-    order = torch.argsort(s[passes], stable=True)                       # of a particle's partners, the first met
-    i, k, s, d, contact, normal = (t[passes][order] for t in (i, k, s, d, contact, normal))
+    order = torch.argsort(passed.s, stable=True)                        # of a particle's partners, the first met
+    i, k, s, d, contact, normal = (t[order] for t in passed)
     stopped, slot = torch.unique(i, return_inverse=True)
     first = torch.full_like(stopped, len(i)).scatter_reduce(0, slot, torch.arange(len(i), device=x.device), "amin")
     k, s, d, contact, normal = (t[first] for t in (k, s, d, contact, normal))

@@ -25,7 +25,7 @@ MSE = "rollout MSE"
 SECONDS = "seconds per frame"
 CAP_COUNTS = {"capped receivers per frame", "dropped edges per frame"}     # a model with a neighbour cap
 # plausibility measures without an Acc (the kinetic energy has one: a metric with a truth)
-PLAUSIBILITY = {"Max overlap", "P99 overlap", "Outside box"}
+PLAUSIBILITY = {"Max overlap", "P99 overlap", "Outside box", "Through wall"}
 
 # The value columns shown, with their headings.
 COLUMNS = {"acc_percent": "Acc (%), article", "acc_frames": "Acc frames (tau)",

@@ -199,7 +199,7 @@ def test_the_dem_ensemble_is_scored_as_a_third_method_by_the_same_code(tiny_data
     energy = member.loc["Kinetic energy"]
     assert energy["acc_percent"] == 100.0 and energy["acc_pooled_percent"] == 100.0
     assert member.at["Kinetic energy", "acc_frames"] == "2 4"       # tau 9 lies beyond the 6 predicted frames
-    for name in ("Max overlap", "P99 overlap", "Outside box", "Kinetic energy"):
+    for name in ("Max overlap", "P99 overlap", "Outside box", "Through wall", "Kinetic energy"):
         assert member.at[name, "mean_prediction"] == member.at[name, "mean_truth"]
     model = table[(table["method"] == "graphdem") & (table["sim"] == "all")].set_index("metric")
     assert model.at["Max overlap", "mean_truth"] == member.at["Max overlap", "mean_truth"] < 0.1

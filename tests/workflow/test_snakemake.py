@@ -427,11 +427,14 @@ def test_scene_outputs(ci_results, scene, dim, n_types, metrics):
     steps = pd.read_csv(res / "metrics_per_step.csv")
     assert set(steps["method"]) == {"graphdem", "constant_velocity", "dem_ensemble"}
     overall = table[table["sim"] == "all"].set_index(["method", "metric"])
-    # plausibility: the DEM's own overlaps stay below its blow-up limit, and no DEM particle leaves the box
+    # plausibility: the DEM's own overlaps stay below its blow-up limit, and no DEM particle leaves the box or
+    # passes a wall (the shear's box and platen; the meteorite has no wall particle)
     for method in ("dem_ensemble", "graphdem"):
         assert 0 < overall.at[(method, "Max overlap"), "mean_truth"] < 0.5
         assert overall.at[(method, "Outside box"), "mean_truth"] == 0
+        assert overall.at[(method, "Through wall"), "mean_truth"] == 0
     assert overall.at[("dem_ensemble", "Outside box"), "mean_prediction"] == 0
+    assert overall.at[("dem_ensemble", "Through wall"), "mean_prediction"] == 0
     # the article's frame set: the meteorite's Acc averages over Table 2's taus that its ci window reaches
     frames = set(overall.loc[(slice(None), sorted(metrics & set(overall.index.get_level_values(1)))),
                              "acc_frames"].dropna())
