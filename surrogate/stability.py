@@ -6,7 +6,8 @@ kinematic particles stay where the data left them. It reports, never hides: the 
 non-finite frame, particles that leave the dataset's box (or, with the runtime switch
 ``keep_in_domain``, how many times a particle was put back on a box face; with ``contact_correction``,
 how many times a particle was stopped at a kinematic particle it passed and a pair was pushed apart), the overlap
-distribution and the kinetic energy per frame, the growth of the error per step over the recorded
+distribution, the particles that passed a wall (the plausibility measure ``Through wall``: reported, not part of
+the envelope below) and the kinetic energy per frame, the growth of the error per step over the recorded
 window, the largest speed at the end (a flow should come to rest, not drift or vibrate), and the
 first frame that leaves the physical envelope.
 
@@ -28,7 +29,7 @@ import torch
 
 from generators.blowup import overlap_fractions
 from surrogate import runtime as rt
-from surrogate.metrics.plausibility import OVERLAP_QUANTILE, kinetic_energy
+from surrogate.metrics.plausibility import OVERLAP_QUANTILE, kinetic_energy, through_wall
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.samples import Sim
@@ -38,8 +39,8 @@ from surrogate.simulator import LearnedSimulator
 def frame_table(position: np.ndarray, sim: Sim, lower: np.ndarray, upper: np.ndarray, start: int, max_overlap: float,
                 energy_limit: float) -> pd.DataFrame:
     """Per frame from ``start``: kinetic energy, the overlap distribution (max and 99th percentile of
-    overlap / smaller radius), moving particles outside the box, and whether the frame is inside the
-    physical envelope (module docstring) and, if not, why."""
+    overlap / smaller radius), moving particles outside the box and through a wall since the frame before,
+    and whether the frame is inside the physical envelope (module docstring) and, if not, why."""
     traj, moving = sim.traj, ~sim.kinematic.numpy()
     radius, kinematic = np.asarray(traj.radius, float), sim.kinematic.numpy()
     energy = kinetic_energy(position, traj.mass, moving, frame_interval(traj))
@@ -49,6 +50,8 @@ def frame_table(position: np.ndarray, sim: Sim, lower: np.ndarray, upper: np.nda
         finite = bool(np.isfinite(x).all())
         overlaps = overlap_fractions(x, radius, kinematic) if finite else np.zeros(0)
         outside = int(((x[moving] < lower) | (x[moving] > upper)).any(axis=-1).sum()) if finite else 0
+        passed = through_wall(position[t - 1], x, radius, kinematic) \
+            if t > 0 and finite and np.isfinite(position[t - 1]).all() else 0
         worst = float(overlaps.max()) if len(overlaps) else 0.0
         causes = [c for c, bad in (("non-finite", not finite), ("outside the box", outside > 0),
                                    (f"overlap above {max_overlap:g} radii", worst > max_overlap),
@@ -56,7 +59,8 @@ def frame_table(position: np.ndarray, sim: Sim, lower: np.ndarray, upper: np.nda
                   if bad]
         rows.append({"frame": t, "kinetic_energy": energy[t], "max_overlap": worst,
                      f"p{OVERLAP_QUANTILE}_overlap": float(np.percentile(overlaps, OVERLAP_QUANTILE)) if len(overlaps)
-                     else 0.0, "outside": outside, "in_envelope": not causes, "envelope_cause": "; ".join(causes)})
+                     else 0.0, "outside": outside, "through_wall": passed, "in_envelope": not causes,
+                     "envelope_cause": "; ".join(causes)})
     return pd.DataFrame(rows)
 
 
@@ -122,6 +126,7 @@ def long_rollout(simulator: LearnedSimulator, runtime: rt.Runtime, sim: Sim, len
         "clamped_particle_steps": int(result.timing.get("clamped", 0)),
         "stopped_particle_steps": int(result.timing.get("stopped", 0)),
         "corrected_pair_steps": int(result.timing.get("corrected", 0)),
+        "through_wall_particle_steps": int(frames.loc[frames["frame"] < end, "through_wall"].sum()),
         "frames_over_overlap_limit": int((overlaps > max_overlap).sum()),
         "max_overlap": float(overlaps.max()) if len(overlaps) else np.nan,
         f"p{OVERLAP_QUANTILE}_overlap_last": float(frames[f"p{OVERLAP_QUANTILE}_overlap"].iloc[-1]) if len(frames)

@@ -111,6 +111,23 @@ def test_the_envelope_names_the_first_frame_and_its_cause(untrained):
     assert table["max_overlap"].max() > 1.5
 
 
+def test_a_particle_sent_through_a_wall_particle_is_counted_in_its_frame(untrained):
+    """The moving particle nearest a kinematic one is carried, from frame 6 on, to its mirror image through that
+    particle's centre: one passage at frame 6 and none after (it stays there); the data itself passes none."""
+    simulator, sim = untrained
+    lower, upper = simulator.lower.numpy().astype(float), simulator.upper.numpy().astype(float)
+    data = np.asarray(sim.traj.position, float)
+    clean = stability.frame_table(data, sim, lower, upper, 1, max_overlap=np.inf, energy_limit=np.inf)
+    assert (clean["through_wall"] == 0).all()
+    moving, kinematic = np.flatnonzero(~sim.kinematic.numpy()), np.flatnonzero(sim.kinematic.numpy())
+    gaps = np.linalg.norm(data[5, moving][:, None] - data[5, kinematic][None], axis=-1)
+    i, k = np.unravel_index(np.argmin(gaps), gaps.shape)
+    passed = data.copy()
+    passed[6:, moving[i]] = 2 * data[5, kinematic[k]] - data[5, moving[i]]
+    table = stability.frame_table(passed, sim, lower, upper, 1, max_overlap=np.inf, energy_limit=np.inf)
+    assert table.set_index("frame")["through_wall"].to_dict() == {t: int(t == 6) for t in range(1, len(data))}
+
+
 def test_long_rollout_frames_cover_every_predicted_frame(untrained):
     simulator, sim = untrained
     row, frames = stability.long_rollout(simulator, RT, sim, 2, 0.0, 0, max_overlap=0.5, energy_envelope=2.0)
