@@ -6,6 +6,7 @@ next frame ``p^{t+1}``; every sim of T frames yields T - K samples (``t = K-1 ..
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -98,3 +99,46 @@ def sample_index(sims: list[Sim], history: int) -> list[tuple[int, int]]:
                              f"plus a target frame")
         index.extend((s, t) for t in range(history - 1, sim.n_frames - 1))
     return index
+
+
+def sample_activity(sims: list[Sim], index: list[tuple[int, int]]) -> np.ndarray:
+    """Each sample's activity: the mean over its moving particles of the squared target acceleration
+    ``|p^{t+1} - 2 p^t + p^{t-1}|^2`` (dataset length units per frame squared), the quantity the training
+    loss is made of. A sim with no moving particle has activity 0 in every sample."""
+    activity = np.zeros(len(index))
+    for s, sim in enumerate(sims):
+        rows = [i for i, (owner, _) in enumerate(index) if owner == s]
+        if not rows:
+            continue
+        moving = ~sim.kinematic
+        frames = torch.tensor([index[i][1] for i in rows])
+        if not bool(moving.any()):
+            continue
+        p = sim.position[:, moving].double()
+        acceleration = p[frames + 1] - 2 * p[frames] + p[frames - 1]
+        activity[rows] = (acceleration ** 2).sum(-1).mean(-1).numpy()
+    return activity
+
+
+def activity_weights(activity: np.ndarray, weight: float) -> torch.Tensor | None:
+    """The probability weights ``1 + weight * a_s / mean(a)`` of drawing each sample s (``a``: its activity,
+    :func:`sample_activity`); None for ``weight`` 0, which keeps the uniform epoch (every sample once). With
+    ``weight`` > 0 a sample moving w times the mean activity is drawn ``(1 + weight w) / (1 + weight)`` times
+    as often as the average sample, so the rare frames of an impact or a collapse, where the flow's
+    accelerations are, are seen more often at the same number of steps."""
+    if weight < 0 or not math.isfinite(weight):
+        raise ValueError(f"train.activity_weight must be a finite number >= 0 (0: uniform sampling), not {weight}")
+    if weight == 0:
+        return None
+    mean = float(np.mean(activity)) if len(activity) else 0.0
+    if not mean > 0:
+        return None                          # nothing moves: every sample is alike
+    return torch.tensor(1.0 + weight * np.asarray(activity, np.float64) / mean)
+
+
+def epoch_order(n: int, weights: torch.Tensor | None, generator: torch.Generator) -> list[int]:
+    """The sample order of one epoch of ``n`` draws: a permutation without ``weights``; with them, ``n``
+    draws with replacement, each sample with probability proportional to its weight."""
+    if weights is None:
+        return torch.randperm(n, generator=generator).tolist()
+    return torch.multinomial(weights, n, replacement=True, generator=generator).tolist()

@@ -40,7 +40,7 @@ from surrogate.errors import TrainingDiverged
 from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
-from surrogate.samples import Sim, load_sim, sample_index
+from surrogate.samples import Sim, activity_weights, epoch_order, load_sim, sample_activity, sample_index
 from surrogate.simulator import Graph, LearnedSimulator, build_graph, moving_acceleration, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
@@ -328,6 +328,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     valid_sims = [load_sim(p, stats, props) for p in valid_paths] if world.main else []   # rank 0 validates
     k = int(model_cfg["history"])
     index = sample_index(train_sims, k)
+    activity_weight = float(train_cfg.get("activity_weight", 0))        # optional; absent: uniform epochs
+    draw_weights = activity_weights(sample_activity(train_sims, index), activity_weight) if activity_weight else None
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
     train_cfg = derived.resolve(train_cfg, stats, n_batches)
@@ -418,7 +420,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     clock = time.perf_counter()
     while state["epoch"] < epochs and not state["finished"]:
         epoch = state["epoch"]
-        order = torch.randperm(len(index), generator=_generator(seed, epoch)).tolist()
+        order = epoch_order(len(index), draw_weights, _generator(seed, epoch))
         bar = tqdm(range(state["batch"], n_batches), desc=f"epoch {epoch + 1}/{epochs}", unit="batch",
                    disable=not progress, mininterval=2.0)
         for b in bar:

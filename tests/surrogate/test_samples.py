@@ -1,8 +1,16 @@
 import numpy as np
 import pytest
+import torch
 
 from generators import h5md
-from surrogate.samples import load_sim, normalised_properties, sample_index
+from surrogate.samples import (
+    activity_weights,
+    epoch_order,
+    load_sim,
+    normalised_properties,
+    sample_activity,
+    sample_index,
+)
 
 STATS = {"dim": 2, "n_types": 2, "property_stats": {"radius": {"mean": 0.5, "std": 0.1, "log": False},
                                                      "young": {"mean": np.log(1e8), "std": 2.0, "log": True}}}
@@ -35,3 +43,42 @@ def test_every_frame_with_a_successor_is_a_sample(tmp_path):
     assert sample_index([sim, sim], history=3) == [(0, t) for t in range(2, 6)] + [(1, t) for t in range(2, 6)]
     with pytest.raises(ValueError, match="7 frames cannot give a history of 7"):
         sample_index([sim], history=7)
+
+
+def test_activity_is_the_mean_squared_target_acceleration_of_the_moving_particles(tmp_path):
+    traj = trajectory(7)
+    # particle 0 falls freely from frame 2 on (acceleration -0.5 per frame^2 in y); particle 1 rests;
+    # the kinematic particle 2 jumps about, which must not count
+    frames = np.arange(7)
+    traj.position[:, 0, 1] = -0.25 * np.clip(frames - 2, 0, None) ** 2
+    traj.position[:, 2, 0] += np.array([0, 3, -2, 5, 0, 1, 4])
+    h5md.write(tmp_path / "a.h5", traj)
+    sim = load_sim(tmp_path / "a.h5", STATS)
+    index = sample_index([sim], history=2)              # t = 1 .. 5
+    activity = sample_activity([sim], index)
+    # target of sample t: p(t+1) - 2 p(t) + p(t-1); the fall starts at t = 2 (p(3) - 2 p(2) + p(1) = -0.25)
+    expected = [0.0, 0.25 ** 2 / 2, 0.5 ** 2 / 2, 0.5 ** 2 / 2, 0.5 ** 2 / 2]
+    np.testing.assert_allclose(activity, expected, rtol=1e-6)
+    # two sims: each sample keeps its own sim's value
+    np.testing.assert_allclose(sample_activity([sim, sim], sample_index([sim, sim], 2)), expected * 2, rtol=1e-6)
+
+
+def test_activity_weights_follow_the_rule_and_zero_keeps_uniform_epochs():
+    activity = np.array([0.0, 1.0, 3.0])               # mean 4/3
+    assert activity_weights(activity, 0.0) is None
+    assert activity_weights(np.zeros(3), 2.0) is None   # nothing moves: every sample alike
+    np.testing.assert_allclose(activity_weights(activity, 2.0).numpy(), [1.0, 2.5, 5.5])
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="train.activity_weight must be a finite number >= 0"):
+            activity_weights(activity, bad)
+
+
+def test_epoch_order_is_a_permutation_or_draws_in_proportion_to_the_weights():
+    gen = torch.Generator().manual_seed(3)
+    assert sorted(epoch_order(50, None, gen)) == list(range(50))
+    weights = torch.tensor([1.0, 3.0, 0.0, 4.0])
+    drawn = np.bincount(epoch_order(40000, weights, torch.Generator().manual_seed(3)), minlength=4) / 40000
+    np.testing.assert_allclose(drawn, [0.125, 0.375, 0.0, 0.5], atol=0.01)
+    # the same generator state gives the same epoch (a resumed run draws what the uninterrupted one drew)
+    assert epoch_order(20, weights, torch.Generator().manual_seed(9)) == epoch_order(20, weights,
+                                                                                     torch.Generator().manual_seed(9))

@@ -236,6 +236,21 @@ def test_run_with_pushforward_and_weight_average_resumes_exactly(tiny_dataset, t
     assert not all(torch.equal(last["model"][k], last["average_model"][k]) for k in wa)   # the average is kept apart
 
 
+def test_activity_weighted_run_resumes_exactly_and_trains_on_other_draws(tiny_dataset, tmp_path):
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "activity_weight": 4.0}}
+    whole = run(tiny, tmp_path / "whole")
+    run(tiny, tmp_path / "parts", max_steps=3)
+    resumed = run(tiny, tmp_path / "parts")
+    assert resumed["step"] == whole["step"]                  # an epoch has as many steps as a uniform one
+    wa = checkpoint.load(tmp_path / "whole" / "last.pt")["model"]
+    wb = checkpoint.load(tmp_path / "parts" / "last.pt")["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    run(tiny_dataset, tmp_path / "uniform")
+    uniform = checkpoint.load(tmp_path / "uniform" / "last.pt")
+    assert uniform["json"]["state"]["step"] == whole["step"]
+    assert not all(torch.equal(wa[k], uniform["model"][k]) for k in wa)
+
+
 def test_learning_rate_cycles_restart_the_same_decay():
     """lr_cycles = 3 over 90 steps: three copies of the one-cycle decay over 30 steps, each from lr towards lr_final;
     absent, the one decay over all steps; past the planned steps, the final rate."""
