@@ -330,6 +330,10 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     index = sample_index(train_sims, k)
     activity_weight = float(train_cfg.get("activity_weight", 0))        # optional; absent: uniform epochs
     draw_weights = activity_weights(sample_activity(train_sims, index), activity_weight) if activity_weight else None
+    if draw_weights is not None:
+        busiest = torch.topk(draw_weights, max(1, len(index) // 10)).values.sum() / draw_weights.sum()
+        log.info("train.activity_weight = %g: samples drawn in proportion to 1 + w x activity / mean activity; the "
+                 "busiest 10 %% of the samples get %.0f %% of the draws", activity_weight, 100 * float(busiest))
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
     train_cfg = derived.resolve(train_cfg, stats, n_batches)
