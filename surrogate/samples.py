@@ -106,17 +106,17 @@ def sample_activity(sims: list[Sim], index: list[tuple[int, int]]) -> np.ndarray
     ``|p^{t+1} - 2 p^t + p^{t-1}|^2`` (dataset length units per frame squared), the quantity the training
     loss is made of. A sim with no moving particle has activity 0 in every sample."""
     activity = np.zeros(len(index))
-    for s, sim in enumerate(sims):
-        rows = [i for i, (owner, _) in enumerate(index) if owner == s]
-        if not rows:
-            continue
-        moving = ~sim.kinematic
-        frames = torch.tensor([index[i][1] for i in rows])
+    rows: dict[int, list[int]] = {}
+    for i, (s, _) in enumerate(index):
+        rows.setdefault(s, []).append(i)
+    for s, mine in rows.items():
+        moving = ~sims[s].kinematic
         if not bool(moving.any()):
             continue
-        p = sim.position[:, moving].double()
+        p = sims[s].position[:, moving].double()
+        frames = torch.tensor([index[i][1] for i in mine])
         acceleration = p[frames + 1] - 2 * p[frames] + p[frames - 1]
-        activity[rows] = (acceleration ** 2).sum(-1).mean(-1).numpy()
+        activity[mine] = (acceleration ** 2).sum(-1).mean(-1).numpy()
     return activity
 
 
