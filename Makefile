@@ -41,7 +41,7 @@ $(APT_STAMP): Makefile
 # The tested set: constraints.txt pins every dependency exactly (pyproject.toml gives only ranges). torch goes
 # first, on its own, at its pin 2.13.0: the CPU build (a bare `torch` would pull gigabytes of CUDA packages).
 $(STAMP): pyproject.toml constraints.txt $(APT_STAMP)
-	@test -x $(PY) || python3 -m venv $(VENV)
+	@$(PY) -m pip --version >/dev/null 2>&1 || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -c constraints.txt torch
 	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
@@ -53,7 +53,7 @@ run: install
 
 test: install
 	$(VENV)/bin/ruff check generators surrogate graphdem tests
-	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadgroup --no-loadscope-reorder
+	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadgroup --no-loadscope-reorder --durations=15
 
 lint: install
 	$(VENV)/bin/ruff check generators surrogate graphdem tests
