@@ -288,8 +288,20 @@ def resolve(config: dict) -> dict:
                 raise ConfigError(f"config key '{key}.scales' has no preset {scale!r}; presets: "
                                   f"{sorted(presets) if isinstance(presets, dict) else presets}")
             value = fill_missing({k: v for k, v in value.items() if k != "scales"}, presets[scale])
-        filled[key] = value
+        filled[key] = drop_null_contenders(value)
     return validate(filled)
+
+
+def drop_null_contenders(section: Any) -> Any:
+    """``section`` without the performance contenders set to null: ``--config
+    "slide={performance: {dem: {dt_5pct: null}}}"`` leaves that contender out of the benchmark (the
+    configured ones are merged in, so null is the way to remove one)."""
+    perf = section.get("performance") if isinstance(section, dict) else None
+    if not isinstance(perf, dict):
+        return section
+    kept = {kind: {name: changes for name, changes in perf[kind].items() if changes is not None}
+            for kind in ("dem", "surrogate") if isinstance(perf.get(kind), dict)}
+    return {**section, "performance": {**perf, **kept}}
 
 
 def load(overrides: dict | None = None, path: Path | None = None) -> dict:

@@ -160,3 +160,12 @@ def test_a_huge_particle_count_is_refused_before_anything_is_built():
                                                  r"particles .* MiB .* above 'limits.particles' = 1,000,000"):
         config.load({"slide": {"radius": [0.005, 0.005]}})
     config.load({"slide": {"radius": [0.005, 0.005]}, "limits": {"particles": 20_000_000}, "scale": "ci"})
+
+
+def test_a_contender_set_to_null_is_left_out_and_a_removed_main_is_refused():
+    nulls = {"dem": {"dt_5pct": None}, "surrogate": {"sleep": "null"}}
+    perf = config.load({"scale": "ci", "slide": {"performance": nulls}})["slide"]["performance"]
+    assert "dt_5pct" not in perf["dem"] and "sleep" not in perf["surrogate"]      # the ci preset's sleep too
+    assert {"reference", "dt_2pct", "dt_10pct"} <= set(perf["dem"]) and "graphdem" in perf["surrogate"]
+    with pytest.raises(config.ConfigError, match=r"'slide.performance.main' = 'graphdem' is not a surrogate contender"):
+        config.load({"slide": {"performance": {"surrogate": {"graphdem": None}}}})

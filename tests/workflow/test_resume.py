@@ -16,8 +16,8 @@ import torch
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 TARGET = "results/slide/model/best.pt"
-CONFIG = ["scale=ci", "slide={n_sims: 4, frames: 8, record_start: 0.5, settle_time: 4.0, "
-          "train: {epochs: 6, patience: 6, checkpoint_every: 1}}"]
+CONFIG = ["scale=ci", "slide={n_sims: 3, frames: 8, record_start: 0.5, settle_time: 4.0, "
+          "train: {epochs: 4, patience: 4, checkpoint_every: 1}}"]
 
 pytestmark = pytest.mark.engine
 
