@@ -136,6 +136,15 @@ def activity_weights(activity: np.ndarray, weight: float) -> torch.Tensor | None
     return torch.tensor(1.0 + weight * np.asarray(activity, np.float64) / mean)
 
 
+def epoch_activity_weight(weight: float, final: float | None, epoch: int, epochs: int) -> float:
+    """The activity weight of ``epoch`` (0-based) of ``epochs``: ``weight`` throughout when ``final`` is None,
+    else linear from ``weight`` at the first epoch to ``final`` at the last (``train.activity_weight_final``):
+    the early epochs see the busy samples more often, the late ones the quiet samples again."""
+    if final is None or epochs <= 1:
+        return float(weight)
+    return float(weight + (final - weight) * epoch / (epochs - 1))
+
+
 def epoch_order(n: int, weights: torch.Tensor | None, generator: torch.Generator) -> list[int]:
     """The sample order of one epoch of ``n`` draws: a permutation without ``weights``; with them, ``n``
     draws with replacement, each sample with probability proportional to its weight."""

@@ -40,7 +40,8 @@ from surrogate.errors import TrainingDiverged
 from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
-from surrogate.samples import Sim, activity_weights, epoch_order, load_sim, sample_activity, sample_index
+from surrogate.samples import (Sim, activity_weights, epoch_activity_weight, epoch_order, load_sim, sample_activity,
+                               sample_index)
 from surrogate.simulator import Graph, LearnedSimulator, build_graph, moving_acceleration, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
@@ -329,11 +330,24 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     k = int(model_cfg["history"])
     index = sample_index(train_sims, k)
     activity_weight = float(train_cfg.get("activity_weight", 0))        # optional; absent: uniform epochs
-    draw_weights = activity_weights(sample_activity(train_sims, index), activity_weight) if activity_weight else None
-    if draw_weights is not None:
-        busiest = torch.topk(draw_weights, max(1, len(index) // 10)).values.sum() / draw_weights.sum()
-        log.info("train.activity_weight = %g: samples drawn in proportion to 1 + w x activity / mean activity; the "
-                 "busiest 10 %% of the samples get %.0f %% of the draws", activity_weight, 100 * float(busiest))
+    activity_final = train_cfg.get("activity_weight_final")             # optional; absent: the same every epoch
+    activity_final = None if activity_final is None else float(activity_final)
+    activity = sample_activity(train_sims, index) if activity_weight or activity_final else None
+
+    def draw_weights(epoch: int) -> torch.Tensor | None:
+        w = epoch_activity_weight(activity_weight, activity_final, epoch, int(train_cfg["epochs"]))
+        return activity_weights(activity, w) if activity is not None and w else None
+
+    if activity is not None:
+        for epoch, name in ((0, "train.activity_weight"), (int(train_cfg["epochs"]) - 1, "train.activity_weight_final")):
+            if name.endswith("final") and activity_final is None:
+                continue
+            w = epoch_activity_weight(activity_weight, activity_final, epoch, int(train_cfg["epochs"]))
+            weights = activity_weights(activity, w)
+            share = 10.0 if weights is None else 100 * float(
+                torch.topk(weights, max(1, len(index) // 10)).values.sum() / weights.sum())
+            log.info("%s = %g (epoch %d): samples drawn in proportion to 1 + w x activity / mean activity; the "
+                     "busiest 10 %% of the samples get %.0f %% of the draws", name, w, epoch + 1, share)
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
     train_cfg = derived.resolve(train_cfg, stats, n_batches)
@@ -424,7 +438,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     clock = time.perf_counter()
     while state["epoch"] < epochs and not state["finished"]:
         epoch = state["epoch"]
-        order = epoch_order(len(index), draw_weights, _generator(seed, epoch))
+        order = epoch_order(len(index), draw_weights(epoch), _generator(seed, epoch))
         bar = tqdm(range(state["batch"], n_batches), desc=f"epoch {epoch + 1}/{epochs}", unit="batch",
                    disable=not progress, mininterval=2.0)
         for b in bar:

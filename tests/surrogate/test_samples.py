@@ -5,6 +5,7 @@ import torch
 from generators import h5md
 from surrogate.samples import (
     activity_weights,
+    epoch_activity_weight,
     epoch_order,
     load_sim,
     normalised_properties,
@@ -71,6 +72,19 @@ def test_activity_weights_follow_the_rule_and_zero_keeps_uniform_epochs():
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="train.activity_weight must be a finite number >= 0"):
             activity_weights(activity, bad)
+
+
+def test_the_activity_weight_runs_linearly_to_its_final_value_over_the_epochs():
+    # absent final: the same weight every epoch
+    assert [epoch_activity_weight(4.0, None, e, 10) for e in range(10)] == [4.0] * 10
+    # 4 -> 0 over 10 epochs: 4 at the first, 0 at the last, steps of 4/9 between
+    schedule = [epoch_activity_weight(4.0, 0.0, e, 10) for e in range(10)]
+    assert schedule[0] == 4.0 and schedule[-1] == 0.0
+    np.testing.assert_allclose(np.diff(schedule), -4.0 / 9.0)
+    assert epoch_activity_weight(0.0, 2.0, 1, 3) == 1.0                 # it can rise as well
+    assert epoch_activity_weight(4.0, 0.0, 0, 1) == 4.0                 # one epoch: the first value
+    # a weight of 0 at the end is the uniform epoch of activity_weights
+    assert activity_weights(np.array([0.0, 1.0, 3.0]), schedule[-1]) is None
 
 
 def test_epoch_order_is_a_permutation_or_draws_in_proportion_to_the_weights():

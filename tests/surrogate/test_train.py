@@ -251,6 +251,23 @@ def test_activity_weighted_run_resumes_exactly_and_trains_on_other_draws(tiny_da
     assert not all(torch.equal(wa[k], uniform["model"][k]) for k in wa)
 
 
+def test_a_decaying_activity_weight_resumes_exactly_and_differs_from_the_constant_one(tiny_dataset, tmp_path):
+    """activity_weight 4 -> activity_weight_final 0: a stopped run resumes to the uninterrupted run's weights (the
+    epoch's weight is a function of the epoch), and the run trains on other draws than the constant weight 4."""
+    base = {**tiny_dataset["train"], "epochs": 2, "patience": 2}
+    decaying = {**tiny_dataset, "train": {**base, "activity_weight": 4.0, "activity_weight_final": 0.0}}
+    whole = run(decaying, tmp_path / "whole")
+    run(decaying, tmp_path / "parts", max_steps=1)
+    resumed = run(decaying, tmp_path / "parts")
+    assert resumed["step"] == whole["step"]
+    wa = checkpoint.load(tmp_path / "whole" / "last.pt")["model"]
+    wb = checkpoint.load(tmp_path / "parts" / "last.pt")["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    constant = {**tiny_dataset, "train": {**base, "activity_weight": 4.0}}
+    run(constant, tmp_path / "constant")
+    assert not all(torch.equal(wa[k], checkpoint.load(tmp_path / "constant" / "last.pt")["model"][k]) for k in wa)
+
+
 def test_learning_rate_cycles_restart_the_same_decay():
     """lr_cycles = 3 over 90 steps: three copies of the one-cycle decay over 30 steps, each from lr towards lr_final;
     absent, the one decay over all steps; past the planned steps, the final rate."""
