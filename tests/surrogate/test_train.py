@@ -223,28 +223,29 @@ def test_weight_average_follows_the_ema_formula():
     torch.testing.assert_close(average["weight"], start + 0.95)
 
 
+def _resumes_exactly(config: dict, folder, max_steps: int = 3, which: str = "last.pt"):
+    """Trains ``config`` without a stop and, in another folder, stopped after ``max_steps`` and resumed; asserts
+    both end at the same step with the same weights in ``which``; returns the whole run's state and weights."""
+    whole = run(config, folder / "whole")
+    run(config, folder / "parts", max_steps=max_steps)
+    resumed = run(config, folder / "parts")
+    assert resumed["step"] == whole["step"]
+    wa = checkpoint.load(folder / "whole" / which)["model"]
+    wb = checkpoint.load(folder / "parts" / which)["model"]
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    return whole, wa
+
+
 def test_run_with_pushforward_and_weight_average_resumes_exactly(tiny_dataset, tmp_path):
     tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "pushforward": 0.5, "ema_decay": 0.9}}
-    whole = run(tiny, tmp_path / "whole")
-    run(tiny, tmp_path / "parts", max_steps=3)
-    resumed = run(tiny, tmp_path / "parts")
-    assert resumed["step"] == whole["step"]
-    wa = checkpoint.load(tmp_path / "whole" / "best.pt")["model"]
-    wb = checkpoint.load(tmp_path / "parts" / "best.pt")["model"]
-    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    _, wa = _resumes_exactly(tiny, tmp_path, which="best.pt")
     last = checkpoint.load(tmp_path / "whole" / "last.pt")
     assert not all(torch.equal(last["model"][k], last["average_model"][k]) for k in wa)   # the average is kept apart
 
 
 def test_activity_weighted_run_resumes_exactly_and_trains_on_other_draws(tiny_dataset, tmp_path):
     tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "activity_weight": 4.0}}
-    whole = run(tiny, tmp_path / "whole")
-    run(tiny, tmp_path / "parts", max_steps=3)
-    resumed = run(tiny, tmp_path / "parts")
-    assert resumed["step"] == whole["step"]                  # an epoch has as many steps as a uniform one
-    wa = checkpoint.load(tmp_path / "whole" / "last.pt")["model"]
-    wb = checkpoint.load(tmp_path / "parts" / "last.pt")["model"]
-    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    whole, wa = _resumes_exactly(tiny, tmp_path)
     run(tiny_dataset, tmp_path / "uniform")
     uniform = checkpoint.load(tmp_path / "uniform" / "last.pt")
     assert uniform["json"]["state"]["step"] == whole["step"]
@@ -256,13 +257,7 @@ def test_a_decaying_activity_weight_resumes_exactly_and_differs_from_the_constan
     epoch's weight is a function of the epoch), and the run trains on other draws than the constant weight 4."""
     base = {**tiny_dataset["train"], "epochs": 2, "patience": 2}
     decaying = {**tiny_dataset, "train": {**base, "activity_weight": 4.0, "activity_weight_final": 0.0}}
-    whole = run(decaying, tmp_path / "whole")
-    run(decaying, tmp_path / "parts", max_steps=1)
-    resumed = run(decaying, tmp_path / "parts")
-    assert resumed["step"] == whole["step"]
-    wa = checkpoint.load(tmp_path / "whole" / "last.pt")["model"]
-    wb = checkpoint.load(tmp_path / "parts" / "last.pt")["model"]
-    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    _, wa = _resumes_exactly(decaying, tmp_path, max_steps=1)
     constant = {**tiny_dataset, "train": {**base, "activity_weight": 4.0}}
     run(constant, tmp_path / "constant")
     assert not all(torch.equal(wa[k], checkpoint.load(tmp_path / "constant" / "last.pt")["model"][k]) for k in wa)
