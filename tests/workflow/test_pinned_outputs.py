@@ -14,8 +14,7 @@ training with pushforward (docs/meteorite-scene.md and docs/shear-scene.md, Trai
 velocity unchanged). The `Through wall` rows (a plausibility measure added later) were added to the pin
 from a rerun of the evaluation on a ci run of the pinned commit; every row pinned before agreed with that rerun.
 The meteorite's Graph-DEM rows were re-pinned when it started drawing its training samples by activity
-(`train.activity_weight`, docs/meteorite-scene.md), and again when that weight began to fall over the epochs
-(`train.activity_weight_final`); its data and every other row stayed as they were."""
+(`train.activity_weight`, docs/meteorite-scene.md); its data and every other row stayed as they were."""
 
 import json
 import math
