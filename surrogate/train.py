@@ -40,8 +40,15 @@ from surrogate.errors import TrainingDiverged
 from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
-from surrogate.samples import (Sim, activity_weights, epoch_activity_weight, epoch_order, load_sim, sample_activity,
-                               sample_index)
+from surrogate.samples import (
+    Sim,
+    activity_weights,
+    epoch_activity_weight,
+    epoch_order,
+    load_sim,
+    sample_activity,
+    sample_index,
+)
 from surrogate.simulator import Graph, LearnedSimulator, build_graph, moving_acceleration, prune_isolated, stack_graphs
 
 log = logging.getLogger("graphdem.train")
@@ -339,7 +346,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         return activity_weights(activity, w) if activity is not None and w else None
 
     if activity is not None:
-        for epoch, name in ((0, "train.activity_weight"), (int(train_cfg["epochs"]) - 1, "train.activity_weight_final")):
+        last = int(train_cfg["epochs"]) - 1
+        for epoch, name in ((0, "train.activity_weight"), (last, "train.activity_weight_final")):
             if name.endswith("final") and activity_final is None:
                 continue
             w = epoch_activity_weight(activity_weight, activity_final, epoch, int(train_cfg["epochs"]))
