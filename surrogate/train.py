@@ -341,21 +341,23 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     activity_final = None if activity_final is None else float(activity_final)
     activity = sample_activity(train_sims, index) if activity_weight or activity_final else None
 
+    planned = int(train_cfg["epochs"])
+
+    def weight_of(epoch: int) -> float:
+        return epoch_activity_weight(activity_weight, activity_final, epoch, planned)
+
     def draw_weights(epoch: int) -> torch.Tensor | None:
-        w = epoch_activity_weight(activity_weight, activity_final, epoch, int(train_cfg["epochs"]))
-        return activity_weights(activity, w) if activity is not None and w else None
+        return None if activity is None else activity_weights(activity, weight_of(epoch))
 
     if activity is not None:
-        last = int(train_cfg["epochs"]) - 1
-        for epoch, name in ((0, "train.activity_weight"), (last, "train.activity_weight_final")):
-            if name.endswith("final") and activity_final is None:
-                continue
-            w = epoch_activity_weight(activity_weight, activity_final, epoch, int(train_cfg["epochs"]))
-            weights = activity_weights(activity, w)
+        ends = [(0, "train.activity_weight")]
+        ends += [(planned - 1, "train.activity_weight_final")] if activity_final is not None else []
+        for epoch, name in ends:
+            weights = draw_weights(epoch)
             share = 10.0 if weights is None else 100 * float(
                 torch.topk(weights, max(1, len(index) // 10)).values.sum() / weights.sum())
             log.info("%s = %g (epoch %d): samples drawn in proportion to 1 + w x activity / mean activity; the "
-                     "busiest 10 %% of the samples get %.0f %% of the draws", name, w, epoch + 1, share)
+                     "busiest 10 %% of the samples get %.0f %% of the draws", name, weight_of(epoch), epoch + 1, share)
     batch_size = int(train_cfg["batch_size"])
     n_batches = math.ceil(len(index) / batch_size)
     train_cfg = derived.resolve(train_cfg, stats, n_batches)
