@@ -181,11 +181,28 @@ def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, 
     return kept
 
 
+def type_weights(types: torch.Tensor, balance: float) -> torch.Tensor:
+    """Loss weights of one sample's moving particles (``types``, their type ids), by ``train.type_balance`` = b.
+
+    A particle of a type with n moving particles in the sample weighs n^-b, scaled so that the weights average 1
+    over the sample: b = 0 weighs every particle alike (the plain mean), b = 1 gives every type the same total
+    weight whatever its count. Between them, a type of few particles (the meteorite's 19 discs against 666 of
+    ground) counts for more than its share without every particle of it counting as much as a whole type."""
+    if not 0 <= balance <= 1:
+        raise ValueError(f"train.type_balance = {balance!r}: allowed a number in [0, 1] (0: every particle alike)")
+    if balance == 0 or types.numel() == 0:
+        return torch.ones(types.shape, dtype=torch.float32, device=types.device)
+    counts = torch.bincount(types).to(torch.float64)
+    weights = counts[types] ** -balance
+    return (weights * (types.numel() / weights.sum())).to(torch.float32)
+
+
 def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, int]], noise_std: float,
                generator: torch.Generator, mirror: bool = False, pushforward: float = 0.0,
                pushforward_steps: int = 1, *, world: distributed.World | None = None,
                model: torch.nn.Module | None = None, precision: str = "float32",
-               counts: dict | None = None, pushforward_gradient: bool = False) -> torch.Tensor:
+               counts: dict | None = None, pushforward_gradient: bool = False,
+               type_balance: float = 0.0) -> torch.Tensor:
     """Mean squared error of the normalised acceleration over the moving particles of a batch.
 
     With ``mirror``, each sample is reflected in x (window and target together) with probability 1/2.
@@ -212,6 +229,10 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     gradient (the DDP wrapper; default ``simulator``); ``precision`` = ``bfloat16`` runs the forward
     passes under bfloat16 autocast (:func:`surrogate.devices.autocast`).
 
+    With ``type_balance`` = b > 0 each moving particle's squared error is weighted by :func:`type_weights` of its
+    sample (mean weight 1 per sample, so the loss keeps its scale and the multi-process rule above holds); the
+    multi-step loss (``pushforward_gradient``) takes no weights and refuses it.
+
     Every graph keeps each receiver's ``simulator.max_neighbours`` nearest senders where that cap is set;
     ``counts`` (a dict with ``capped``, ``dropped`` and ``edges``), when given, gets the receivers capped,
     the edges dropped and the edges before the cap of the graphs the loss is computed on (this process's
@@ -229,6 +250,9 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     if pushforward_gradient and world.distributed:
         raise ValueError("train.pushforward_gradient: the multi-step loss runs in one training process, "
                          f"got {world.size} (set launch.processes: 1 or pushforward_gradient: false)")
+    if pushforward_gradient and type_balance:
+        raise ValueError(f"train.type_balance = {type_balance!r} with train.pushforward_gradient: the multi-step loss "
+                         f"takes no type weights (set type_balance: 0 or pushforward_gradient: false)")
     step_errors = []                                   # the pushed steps' squared errors (with the gradient)
     with devices.autocast(simulator.lower.device, precision):
         for j in range(max(len(sample.truth) for sample in drawn)):
@@ -256,6 +280,9 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
         moving = (~graph.kinematic).nonzero().squeeze(1)
         prediction = model(graph, decode=moving)
     squared = (prediction.float() - torch.cat(targets)[index[moving]]) ** 2
+    if type_balance:                                   # the stacked graph's moving particles, sample by sample
+        squared = squared * torch.cat([type_weights(sample.types[~sample.kinematic], type_balance)
+                                       for sample in drawn]).unsqueeze(1)
     if step_errors:
         return torch.cat([*step_errors, squared]).mean()
     if not world.distributed:
@@ -459,7 +486,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                               pushforward=float(train_cfg["pushforward"]),
                               pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
                               precision=precision, counts=counts,
-                              pushforward_gradient=bool(train_cfg.get("pushforward_gradient", False)))
+                              pushforward_gradient=bool(train_cfg.get("pushforward_gradient", False)),
+                              type_balance=float(train_cfg.get("type_balance", 0.0)))
             value = distributed.mean(loss, world)          # the batch's loss, the same on every process
             if counts is not None:                         # summed over the processes' shares of the batch
                 summed = distributed.total(torch.tensor([counts["capped"], counts["dropped"], counts["edges"]],

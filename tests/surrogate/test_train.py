@@ -142,6 +142,43 @@ def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
                                train.batch_loss(simulator, [sim], first, 0.0, torch.Generator()))
 
 
+def test_type_weights_average_one_and_balance_the_types_by_their_counts():
+    """b = 0: every particle 1; b = 1: each type the same total weight; b = 0.5: weights in the ratio of
+    the counts' inverse square roots; always a mean of 1; outside [0, 1] refused by name."""
+    types = torch.tensor([0, 0, 0, 1])
+    torch.testing.assert_close(train.type_weights(types, 0.0), torch.ones(4))
+    torch.testing.assert_close(train.type_weights(types, 1.0), torch.tensor([2 / 3, 2 / 3, 2 / 3, 2.0]))
+    half = train.type_weights(types, 0.5)
+    torch.testing.assert_close(half.mean(), torch.tensor(1.0))
+    torch.testing.assert_close(half[3] / half[0], torch.tensor(3.0 ** 0.5))
+    with pytest.raises(ValueError, match=r"train.type_balance = 1.5.*\[0, 1\]"):
+        train.type_weights(types, 1.5)
+
+
+def test_type_balance_weights_each_particles_squared_error_in_the_loss(tiny_dataset):
+    """With two moving types, the loss is the mean of the squared errors weighted by type_weights; b = 0 is the
+    plain mean; the multi-step loss refuses it by name."""
+    from dataclasses import replace
+    simulator, sim = _untrained_simulator_and_first_train_sim(tiny_dataset)
+    moving = (~sim.kinematic).nonzero().squeeze(1)
+    types = sim.types.clone()
+    types[moving[:3]] = 1 - types[moving[0]]           # three moving particles of the other type
+    sim = replace(sim, types=types)
+    t = simulator.history + 1
+    window = sim.position[t - simulator.history + 1:t + 1]
+    graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
+    squared = ((simulator(graph) - simulator.target(window, sim.position[t + 1])) ** 2)[~sim.kinematic]
+    weights = train.type_weights(sim.types[~sim.kinematic], 1.0)
+    got = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0), type_balance=1.0)
+    torch.testing.assert_close(got, (squared * weights.unsqueeze(1)).mean())
+    plain = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0))
+    torch.testing.assert_close(plain, squared.mean())
+    assert not torch.isclose(got, plain)
+    with pytest.raises(ValueError, match="type_balance.*pushforward_gradient"):
+        train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator(), pushforward=1.0,
+                         pushforward_gradient=True, type_balance=0.5)
+
+
 def test_multi_step_pushforward_feeds_m_predicted_frames(tiny_dataset):
     """With pushforward_steps = 2 a pushed sample's history ends in 1 or 2 of the model's own frames
     (each drawn over seeds), each predicted from the window before it; where only one frame precedes
