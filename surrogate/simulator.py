@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from surrogate.graph import CappedEdges, cap_neighbours, radius_graph
-from surrogate.model.constructor import boundary_features
+from surrogate.model.constructor import boundary_features, check_edge_features
 from surrogate.model.graphdem import GraphDEM
 from surrogate.neighbours import check_cap
 
@@ -117,11 +117,17 @@ class LearnedSimulator(nn.Module):
         # senders kept per receiver (null: every one within R); absent in checkpoints from before the key
         self.max_neighbours = check_cap(model_cfg.get("max_neighbours"))
         self.property_names = list(model_cfg.get("properties") or [])
+        # optional edge inputs beyond eq. (7); absent (and in checkpoints from before the key): none
+        self.edge_features = tuple(model_cfg.get("edge_features") or ())
+        check_edge_features(self.edge_features)
+        if "gap" in self.edge_features and "radius" not in self.property_names:
+            raise ValueError(f"model.edge_features: gap needs the particle radius, so model.properties must list "
+                             f"radius (it lists {self.property_names})")
         self.model = GraphDEM(
             dim=self.dim, history=self.history, n_types=int(stats["n_types"]),
             n_props=len(self.property_names), latent=int(model_cfg["latent"]), hidden=int(model_cfg["hidden"]),
             message_passing=int(model_cfg["message_passing"]), embed=int(model_cfg["embed"]),
-            layers=int(model_cfg["mlp_layers"]))
+            layers=int(model_cfg["mlp_layers"]), edge_features=self.edge_features)
         bounds = torch.tensor(stats["bounds"], dtype=torch.float32)
         self.register_buffer("lower", bounds[:, 0].clone())
         self.register_buffer("upper", bounds[:, 1].clone())
@@ -139,8 +145,16 @@ class LearnedSimulator(nn.Module):
             raise ValueError(f"the model takes a history of K = {self.history} frames, got {graph.window.shape[0]}")
         last = graph.window[-1]
         boundary = boundary_features(last, self.lower, self.upper, self.radius)
+        velocity = last - graph.window[-2] if self.edge_features else None
+        radii = self.radii(graph.props) if "gap" in self.edge_features else None
         return self.model(self.velocities(graph.window), graph.types, boundary, last, graph.edge_index,
-                          self.radius, graph.props, decode)
+                          self.radius, graph.props, decode, velocity, radii)
+
+    def radii(self, props: torch.Tensor) -> torch.Tensor:
+        """[N] particle radii (m) recovered from the normalised node property ``radius``."""
+        s = self.stats["property_stats"]["radius"]
+        values = props[:, self.property_names.index("radius")] * s["std"] + s["mean"]
+        return torch.exp(values) if s.get("log") else values
 
     def target(self, window: torch.Tensor, next_position: torch.Tensor) -> torch.Tensor:
         """Normalised acceleration that takes ``window`` to ``next_position``."""
