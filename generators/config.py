@@ -202,12 +202,21 @@ def _check_semantics(config: dict) -> None:
                               f"{', '.join(scene.engines)} for now")
         scene.check(cfg)
         property_test.values(name, cfg)
+        _check_edge_features(name, cfg["model"])
     for name in BENCHMARKS:
         bench = config[name]
+        _check_edge_features(name, bench["model"])
         if min(bench["protocols"]) < bench["model"]["history"]:
             raise ConfigError(f"config key '{name}.protocols' = {bench['protocols']}: a protocol gives K frames and "
                               f"the model reads the last '{name}.model.history' = {bench['model']['history']} of "
                               f"them, so every K must be at least that")
+
+
+def _check_edge_features(name: str, model: dict) -> None:
+    """The edge feature ``gap`` reads the particle radius, so the model must take it as a node property."""
+    if "gap" in (model.get("edge_features") or []) and "radius" not in model["properties"]:
+        raise ConfigError(f"config key '{name}.model.edge_features' lists gap, which needs the particle radius: "
+                          f"'{name}.model.properties' must list radius (it lists {model['properties']})")
 
 
 def _check_size(name: str, scene, cfg: dict, limit: int) -> None:

@@ -64,6 +64,19 @@ def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
         config.load({"slide_samer": {"train": {"lr_cycles": 0}}})
 
 
+def test_edge_features_are_an_optional_list_of_known_names_and_gap_needs_the_radius_property():
+    """A list of known names is accepted; an unknown name, and a gap without the radius property, are refused by
+    key when the config is read, before anything runs."""
+    loaded = config.load({"slide_small": {"model": {"edge_features": ["relative_velocity", "gap"]}}})
+    assert loaded["slide_small"]["model"]["edge_features"] == ["relative_velocity", "gap"]
+    with pytest.raises(config.ConfigError, match=r"slide\.model\.edge_features\.0.*'spin' is not one of"):
+        config.load({"slide": {"model": {"edge_features": ["spin"]}}})
+    with pytest.raises(config.ConfigError, match=r"'slide_samer\.model\.edge_features' lists gap.*must list radius"):
+        config.load({"slide_samer": {"model": {"edge_features": ["gap"]}}})
+    with pytest.raises(config.ConfigError, match=r"'slide\.model\.edge_features' lists gap"):
+        config.load({"slide": {"model": {"edge_features": ["gap"]}}})
+
+
 def test_contact_correction_is_null_or_its_two_keys_and_a_tolerance():
     defaults = config.load()
     for scene in ("slide", "meteorite", "shear"):         # chosen on each scene's valid split (docs/surrogate.md)
