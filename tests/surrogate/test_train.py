@@ -420,3 +420,27 @@ def test_bfloat16_autocast_changes_the_training_loss_by_rounding_only(tiny_datas
     assert half.dtype == torch.float32 and 0 < abs(half.item() / full.item() - 1) < 0.01    # measured 2e-4
     half.backward()
     assert all(p.grad is not None and p.grad.dtype == torch.float32 for p in simulator.parameters())
+
+
+def test_compiled_training_follows_the_eager_run_to_float32_rounding(tiny_dataset, tmp_path):
+    """train.compile runs the training and validation forward passes through torch.compile (pushforward steps
+    included); the run is the eager one up to float32 rounding, and its checkpoints are the eager model's."""
+    from torch._dynamo.utils import counters
+
+    from surrogate.simulator import LearnedSimulator
+    tiny = {**tiny_dataset, "train": {**tiny_dataset["train"], "epochs": 2, "patience": 2, "pushforward": 1.0,
+                                      "pushforward_steps": 2}}
+    run(tiny, tmp_path / "eager")
+    before = counters["stats"]["unique_graphs"]
+    run({**tiny, "train": {**tiny["train"], "compile": True}}, tmp_path / "compiled")
+    assert counters["stats"]["unique_graphs"] > before                        # it did compile
+    eager, compiled = (pd.read_csv(tmp_path / name / "history.csv") for name in ("eager", "compiled"))
+    assert (eager["train_loss"] > 0).all()
+    assert list(compiled["step"]) == list(eager["step"])
+    for column in ("train_loss", "valid_rollout_mse"):
+        assert compiled[column].to_numpy() == pytest.approx(eager[column].to_numpy(), rel=1e-3)
+    saved = checkpoint.load(tmp_path / "compiled" / "best.pt")
+    plain = LearnedSimulator(json.loads(tiny_dataset["stats_json"]), tiny["model"])
+    plain.load_state_dict(saved["model"])                                      # the same keys as an eager model's
+    reference = checkpoint.load(tmp_path / "eager" / "best.pt")["model"]
+    assert max(float((saved["model"][k] - reference[k]).abs().max()) for k in reference) < 1e-3
