@@ -132,6 +132,12 @@ def apply(simulator: torch.nn.Module, runtime: Runtime) -> torch.nn.Module:
             module.split_edge_mlp = runtime.split_edge_mlp
     simulator = simulator.to(runtime.network_dtype)
     if runtime.compile:
-        # dynamic: every step has other node and edge counts; a static compile would recompile each step
-        simulator.compile(dynamic=True)
+        compile_forward(simulator)
     return simulator
+
+
+def compile_forward(simulator: torch.nn.Module) -> None:
+    """Compile ``simulator``'s forward pass in place (``nn.Module.compile``: the weights and the state dict stay
+    the same), with dynamic shapes: every step has other node and edge counts, and a static compile would
+    recompile at each one. The rollout's ``compile`` switch and training's ``train.compile`` both use it."""
+    simulator.compile(dynamic=True)

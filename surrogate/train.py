@@ -35,7 +35,7 @@ import torch
 from tqdm import tqdm
 
 from generators.atomic import atomic_path
-from surrogate import checkpoint, derived, devices, distributed
+from surrogate import checkpoint, derived, devices, distributed, runtime
 from surrogate.errors import TrainingDiverged
 from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
@@ -413,10 +413,9 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     average = {k: v.detach().clone() for k, v in simulator.state_dict().items()} if decay is not None else None
     validator = LearnedSimulator(stats, model_cfg).to(device) if decay is not None else simulator
     if train_cfg.get("compile"):
-        # in place (the weights and the state dict stay the same); dynamic: every batch has other node and edge
-        # counts, and a static compile would recompile at each step
-        for module in {id(simulator): simulator, id(validator): validator}.values():
-            module.compile(dynamic=True)
+        runtime.compile_forward(simulator)
+        if validator is not simulator:
+            runtime.compile_forward(validator)
         log.info("train.compile: the forward passes of training and validation run through torch.compile")
     last = out_dir / "last.pt"
     if last.exists() and not fresh:
