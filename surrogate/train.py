@@ -1,5 +1,6 @@
-"""Training (article 5.4.3): Adam, L2 loss on the normalised acceleration of moving particles,
-random-walk input noise, validation by rollout error, early stopping, resumable checkpoints.
+"""Training (article 5.4.3): Adam (optionally with decoupled weight decay), L2 loss on the normalised
+acceleration of moving particles, random-walk input noise, validation by rollout error, early stopping,
+resumable checkpoints.
 
 Files in the output folder:
 
@@ -179,6 +180,23 @@ def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, 
                             sim.types.to(device), sim.kinematic.to(device),
                             None if sim.props is None else sim.props.to(device)))
     return kept
+
+
+def make_optimiser(parameters, train_cfg: dict) -> torch.optim.Optimizer:
+    """The article's Adam, or with ``weight_decay`` = lambda > 0 (optional; absent: 0) Adam with decoupled weight
+    decay (AdamW; Loshchilov and Hutter, ICLR 2019): each step also shrinks every weight by lr x lambda, apart from
+    the gradient's moments,
+
+        theta <- theta - lr (m_hat / (sqrt(v_hat) + eps) + lambda theta),
+
+    so a weight the loss does not use decays as (1 - lr lambda) per step. lambda = 0 is exactly Adam."""
+    lr = float(train_cfg["lr"])
+    decay = train_cfg.get("weight_decay", 0.0)
+    if isinstance(decay, bool) or not isinstance(decay, int | float) or not 0 <= decay <= 1:
+        raise ValueError(f"train.weight_decay = {decay!r}: allowed a number in [0, 1] (0: Adam without decay)")
+    if decay == 0:
+        return torch.optim.Adam(parameters, lr=lr)
+    return torch.optim.AdamW(parameters, lr=lr, weight_decay=float(decay))
 
 
 def type_weights(types: torch.Tensor, balance: float) -> torch.Tensor:
@@ -399,7 +417,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
 
     torch.manual_seed(seed)
     simulator = LearnedSimulator(stats, model_cfg).to(device)
-    optimiser = torch.optim.Adam(simulator.parameters(), lr=float(train_cfg["lr"]))
+    optimiser = make_optimiser(simulator.parameters(), train_cfg)
     state = {"epoch": 0, "batch": 0, "step": 0, "history": [], "best_mse": math.inf, "best_epoch": -1,
              "best_step": 0, "bad_epochs": 0, "finished": False, "loss_sum": 0.0, "loss_count": 0, "seconds": 0.0,
              # the learning-rate schedule is fixed when a run starts, so a resumed run follows it exactly

@@ -64,6 +64,18 @@ def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
         config.load({"slide_samer": {"train": {"lr_cycles": 0}}})
 
 
+def test_weight_decay_is_an_optional_number_in_0_1_absent_by_default():
+    """Absent from every default train section (Adam, as before: no trained model's settings change), accepted in
+    [0, 1] in a scene and a benchmark, refused by name outside it."""
+    defaults = config.load()
+    assert not any("weight_decay" in section["train"] for section in defaults.values()
+                   if isinstance(section, dict) and isinstance(section.get("train"), dict))
+    assert config.load({"slide_small": {"train": {"weight_decay": 0.1}}})["slide_small"]["train"]["weight_decay"] == 0.1
+    assert config.load({"slide": {"train": {"weight_decay": 0.01}}})["slide"]["train"]["weight_decay"] == 0.01
+    with pytest.raises(config.ConfigError, match=r"slide_small\.train\.weight_decay.*'maximum': 1"):
+        config.load({"slide_small": {"train": {"weight_decay": 2}}})
+
+
 def test_edge_features_are_an_optional_list_of_known_names_and_gap_needs_the_radius_property():
     """A list of known names is accepted; an unknown name, and a gap without the radius property, are refused by
     key when the config is read, before anything runs."""

@@ -300,6 +300,43 @@ def test_a_decaying_activity_weight_resumes_exactly_and_differs_from_the_constan
     assert not all(torch.equal(wa[k], checkpoint.load(tmp_path / "constant" / "last.pt")["model"][k]) for k in wa)
 
 
+def test_weight_decay_is_adams_step_plus_a_decoupled_shrink_and_zero_is_adam():
+    """AdamW's first step by hand: theta (1 - lr lambda) - lr g / (|g| + eps) (Adam's first step is lr sign(g) up to
+    eps); a weight without gradient shrinks by (1 - lr lambda) per step; lambda absent or 0 is torch's plain Adam;
+    a value outside [0, 1] is refused by name."""
+    lr, lam = 1e-2, 0.1
+    theta0 = torch.tensor([2.0, -1.0, 0.5])
+    grad = torch.tensor([0.3, -4.0, 0.0])
+    theta = torch.nn.Parameter(theta0.clone())
+    optimiser = train.make_optimiser([theta], {"lr": lr, "weight_decay": lam})
+    assert isinstance(optimiser, torch.optim.AdamW)
+    for step in range(3):
+        theta.grad = grad.clone() if step == 0 else torch.zeros(3)
+        optimiser.step()
+        if step == 0:
+            expected = theta0 * (1 - lr * lam) - lr * grad / (grad.abs() + 1e-8)
+            assert torch.allclose(theta.detach(), expected, rtol=1e-6, atol=1e-7)
+    assert theta[2].item() == pytest.approx(0.5 * (1 - lr * lam) ** 3, rel=1e-6)      # never had a gradient
+    for cfg in ({"lr": lr}, {"lr": lr, "weight_decay": 0}):
+        optimiser = train.make_optimiser([torch.nn.Parameter(theta0.clone())], cfg)
+        assert type(optimiser) is torch.optim.Adam and optimiser.defaults["weight_decay"] == 0
+    for bad in (-0.1, 1.5, True, "0.1"):
+        with pytest.raises(ValueError, match=r"train\.weight_decay = .*allowed a number in \[0, 1\]"):
+            train.make_optimiser([torch.nn.Parameter(theta0.clone())], {"lr": lr, "weight_decay": bad})
+
+
+def test_weight_decay_run_trains_other_weights_and_resumes_exactly(tiny_dataset, tmp_path):
+    """A run with weight_decay resumes to the uninterrupted run's weights (the optimiser's state is AdamW's) and
+    ends with smaller weights than the same run without decay."""
+    decayed = {**tiny_dataset, "train": {**tiny_dataset["train"], "weight_decay": 0.5}}
+    _, weights = _resumes_exactly(decayed, tmp_path, max_steps=1)
+    run(tiny_dataset, tmp_path / "plain")
+    plain = checkpoint.load(tmp_path / "plain" / "last.pt")["model"]
+    norm = {name: sum(float(w[k].float().norm()) for k in w if w[k].is_floating_point())
+            for name, w in (("decayed", weights), ("plain", plain))}
+    assert norm["decayed"] < norm["plain"]
+
+
 def test_learning_rate_cycles_restart_the_same_decay():
     """lr_cycles = 3 over 90 steps: three copies of the one-cycle decay over 30 steps, each from lr towards lr_final;
     absent, the one decay over all steps; past the planned steps, the final rate."""
