@@ -64,12 +64,13 @@ def test_lr_cycles_is_an_optional_positive_integer_absent_by_default():
         config.load({"slide_samer": {"train": {"lr_cycles": 0}}})
 
 
-def test_weight_decay_is_an_optional_number_in_0_1_absent_by_default():
-    """Absent from every default train section (Adam, as before: no trained model's settings change), accepted in
-    [0, 1] in a scene and a benchmark, refused by name outside it."""
+def test_weight_decay_is_an_optional_number_in_0_1_set_only_for_slide_small():
+    """0.1 in Slide-Small's defaults (where three seeds measured it lower), absent from every other default train
+    section (Adam), accepted in [0, 1] in a scene and a benchmark, refused by name outside it."""
     defaults = config.load()
-    assert not any("weight_decay" in section["train"] for section in defaults.values()
-                   if isinstance(section, dict) and isinstance(section.get("train"), dict))
+    assert defaults["slide_small"]["train"]["weight_decay"] == 0.1
+    assert not any("weight_decay" in section["train"] for name, section in defaults.items()
+                   if name != "slide_small" and isinstance(section, dict) and isinstance(section.get("train"), dict))
     assert config.load({"slide_small": {"train": {"weight_decay": 0.1}}})["slide_small"]["train"]["weight_decay"] == 0.1
     assert config.load({"slide": {"train": {"weight_decay": 0.01}}})["slide"]["train"]["weight_decay"] == 0.01
     with pytest.raises(config.ConfigError, match=r"slide_small\.train\.weight_decay.*'maximum': 1"):
