@@ -23,6 +23,7 @@ import gc
 import json
 import math
 import os
+import shutil
 import socketserver
 import sys
 import time
@@ -308,19 +309,38 @@ def record(job, out):
              runup_seconds=runup)
 
 
+def yade_temp_dir():
+    """The directory YADE made for this process (``/tmp/yade-XXXXXX``, from ``O.tmpFilename()``)."""
+    return os.path.dirname(O.tmpFilename())
+
+
+def remove_yade_temp_dir(path):
+    """Remove YADE's per-process temporary directory. YADE deletes it only on the interactive session's
+    exit, which ``-x`` never reaches, so every batch run would leave an empty ``/tmp/yade-XXXXXX`` behind.
+    Only a directory named ``yade-*`` is touched."""
+    if os.path.basename(path).startswith("yade-") and os.path.isdir(path):
+        shutil.rmtree(path, ignore_errors=True)
+
+
 def main():
-    closed = close_servers()
-    listening_at_start = listening_sockets()
-    with open(sys.argv[1]) as fh:
-        job = json.load(fh)
-    out = job["out"]
-    {"settle": settle, "record": record}[job["mode"]](job, out + ".tmp.npz")
-    os.replace(out + ".tmp.npz", out)
-    with open(out + ".json", "w") as fh:
-        json.dump({"servers_closed": closed, "listening_at_start": listening_at_start,
-                   "listening_sockets": listening_sockets(),
-                   "iterations": O.iter,
-                   "dt": O.dt}, fh)
+    temp_dir = yade_temp_dir()
+    print(f"graphdem: YADE's temporary directory {temp_dir} (removed at the end)", flush=True)
+    try:
+        closed = close_servers()
+        listening_at_start = listening_sockets()
+        with open(sys.argv[1]) as fh:
+            job = json.load(fh)
+        out = job["out"]
+        {"settle": settle, "record": record}[job["mode"]](job, out + ".tmp.npz")
+        os.replace(out + ".tmp.npz", out)
+        with open(out + ".json", "w") as fh:
+            json.dump({"servers_closed": closed, "listening_at_start": listening_at_start,
+                       "listening_sockets": listening_sockets(),
+                       "iterations": O.iter,
+                       "dt": O.dt,
+                       "yade_temp_dir": temp_dir}, fh)
+    finally:
+        remove_yade_temp_dir(temp_dir)
 
 
 main()

@@ -1,6 +1,7 @@
 """YADE run headless: no server is ever started, no socket listens while a job runs, and two jobs side by
 side agree."""
 
+import json
 import os
 import re
 import subprocess
@@ -32,6 +33,25 @@ def test_two_jobs_side_by_side_start_no_server_and_agree(tmp_path):
     for run in (run_a, run_b):
         assert run.notes["servers_closed"] == 0
         assert run.notes["listening_sockets"] == []
+    # YADE's own /tmp/yade-XXXXXX (one per process; the script's report names it) is not left behind
+    temp_dirs = [json.loads((d / "record.npz.json").read_text())["yade_temp_dir"] for d in dirs]
+    assert temp_dirs[0] != temp_dirs[1]
+    for temp_dir in temp_dirs:
+        assert Path(temp_dir).name.startswith("yade-")
+        assert not Path(temp_dir).exists()
+
+
+def test_a_failing_job_leaves_no_temporary_directory(tmp_path):
+    """A job YADE's script cannot run fails with YadeError naming the log's end, and the script still removes
+    the /tmp/yade-XXXXXX directory YADE made for it (named in the log)."""
+    from generators.yade import runner
+    with pytest.raises(runner.YadeError, match="exit status"):
+        runner.run({"mode": "no-such-mode"}, tmp_path, "bad")
+    log = (tmp_path / "bad.log").read_text()
+    found = re.search(r"YADE's temporary directory (\S+)", log)
+    assert found, log[-500:]
+    assert Path(found.group(1)).name.startswith("yade-")
+    assert not Path(found.group(1)).exists()
 
 
 def _descends_from_this_test(pid: int) -> bool:
