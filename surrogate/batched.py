@@ -9,9 +9,10 @@ runs once on the union, and its output is split back per sim. Each message-passi
 gathers along edges and every MLP works row by row, so each sim's prediction equals its single
 rollout up to the rounding of the larger matrix products.
 
-The sims advance in lock-step from the model's history K; a sim leaves the batch after its last
-frame or its first non-finite one. What batching saves is the per-call overhead of the network
-(Python, dispatch, small kernels) shared by the sims of a step; the arithmetic is the same. The
+The sims advance in lock-step from the model's history K, B frames per network call (the model's
+``bundle``); a sim leaves the batch after its last frame or its first non-finite one. What batching
+saves is the per-call overhead of the network (Python, dispatch, small kernels) shared by the sims
+of a step; the arithmetic is the same. The
 simulator may be an :class:`surrogate.ensemble.Ensemble`, and each sim's graph is capped and counted
 as in a single rollout where the model has a neighbour cap.
 """
@@ -24,7 +25,16 @@ from typing import TYPE_CHECKING
 import torch
 
 from surrogate import devices, samples
-from surrogate.rollout import Rollout, correct_step, finish_step, new_counts, particle_radii, prepare_step, step_timing
+from surrogate.rollout import (
+    Rollout,
+    finish_step,
+    kinematic_frames,
+    new_counts,
+    particle_radii,
+    prepare_step,
+    step_timing,
+    store_frames,
+)
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
 from surrogate.simulator import LearnedSimulator, stack_graphs
@@ -68,7 +78,8 @@ def rollout_batch(simulator: LearnedSimulator | Ensemble, sims: list[Sim], runti
     t_graph = [0.0] * len(sims)
     t_network = 0.0
     start_clock = time.perf_counter()
-    for t in range(k, max(totals)):
+    calls = [0] * len(sims)
+    for t in range(k, max(totals), simulator.bundle):
         active = [i for i, total in enumerate(totals) if t < total and first_bad[i] is None]
         if not active:
             break
@@ -76,7 +87,7 @@ def rollout_batch(simulator: LearnedSimulator | Ensemble, sims: list[Sim], runti
         for i in active:
             sim = sims[i]
             window = sim.position[t - k:t].to(dtype) if forced else positions[i][t - k:t]
-            kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
+            kinematic_next = kinematic_frames(sim, t, simulator.bundle, dtype)
             step = prepare_step(simulator, sim, window, kinematic_next, runtime, props[i], counts[i])
             t_graph[i] += step.seconds_graph
             steps.append(step)
@@ -90,19 +101,17 @@ def rollout_batch(simulator: LearnedSimulator | Ensemble, sims: list[Sim], runti
         t_network += time.perf_counter() - t0
         rows = [s.graph.types.numel() if s.decode is None else s.decode.numel() for s in steps]
         for i, step, part in zip(active, steps, acceleration.split(rows), strict=True):
-            nxt = finish_step(simulator, step, part)
-            if not torch.isfinite(nxt).all():
-                first_bad[i] = t
-                continue
+            frames = finish_step(simulator, step, part)
+            calls[i] += 1
             before = sims[i].position[t - 1].to(dtype) if forced else positions[i][t - 1]   # the step's start
-            positions[i][t] = correct_step(nxt, ~sims[i].kinematic, radii[i], runtime, simulator, counts[i], before)
+            first_bad[i] = store_frames(positions[i], t, frames, ~sims[i].kinematic, radii[i], runtime, simulator,
+                                        counts[i], before)
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
     size = len(sims)
     out = []
     for i in range(size):
-        steps_done = max((first_bad[i] + 1 if first_bad[i] is not None else totals[i]) - k, 1)
-        timing = {**step_timing(counts[i], steps_done), "batch_size": size, "batch_seconds": seconds}
+        timing = {**step_timing(counts[i], max(calls[i], 1)), "batch_size": size, "batch_seconds": seconds}
         out.append(Rollout(positions[i].cpu().numpy(), k, first_bad[i], seconds / size, t_graph[i], timing,
                            t_network / size, simulator.n_models, simulator.max_neighbours))
     return out

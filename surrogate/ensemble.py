@@ -30,7 +30,7 @@ from surrogate import checkpoint
 from surrogate.provenance import as_paths
 from surrogate.simulator import Graph, LearnedSimulator, advance, next_frame
 
-SHARED_MODEL = ("history", "max_neighbours", "properties")
+SHARED_MODEL = ("history", "max_neighbours", "properties", "bundle")
 SHARED_STATS = ("dim", "connectivity_radius", "frame_interval", "bounds", "n_types", "scene", "kinematic_species",
                 "velocity_unit", "acceleration_unit")
 
@@ -56,9 +56,12 @@ def check_compatible(members: Sequence[LearnedSimulator], names: Sequence[str]) 
 
 
 def _normal(key: str, value):
-    """A value as compared: a missing cap is no cap, and a property list is compared as listed."""
+    """A value as compared: a missing cap is no cap, a property list is compared as listed, and a missing bundle
+    is one frame per call."""
     if key == "model.properties":
         return list(value or [])
+    if key == "model.bundle":
+        return 1 if value is None else value
     return value
 
 
@@ -78,6 +81,7 @@ class Ensemble(nn.Module):
         self.stats, self.model_config = first.stats, first.model_config
         self.dim, self.history, self.radius = first.dim, first.history, first.radius
         self.max_neighbours, self.property_names = first.max_neighbours, first.property_names
+        self.bundle = first.bundle
 
     @property
     def n_models(self) -> int:
@@ -93,7 +97,7 @@ class Ensemble(nn.Module):
         return self.members[0].upper
 
     def forward(self, graph: Graph, decode: torch.Tensor | None = None) -> torch.Tensor:
-        """The models' mean physical acceleration ``[N, D]`` (of the nodes ``decode`` only, when given): each
+        """The models' mean physical accelerations ``[N, B D]`` (of the nodes ``decode`` only, when given): each
         model's output in its weights' dtype, denormalised, summed in model order and divided by their number."""
         total = None
         for member in self.members:
@@ -102,7 +106,7 @@ class Ensemble(nn.Module):
         return total / len(self.members)
 
     def integrate(self, window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
-        """Next positions from the mean physical acceleration of :meth:`forward` (eq. 1)."""
+        """The next B frames ``[B, N, D]`` from the mean physical accelerations of :meth:`forward` (eq. 1)."""
         return advance(window, acceleration)
 
     def step(self, graph: Graph, kinematic_next: torch.Tensor) -> torch.Tensor:

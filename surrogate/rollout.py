@@ -1,6 +1,8 @@
 """Rollout (article 5.4.4): from the first K frames of a sim, predict every later frame in turn.
 
 Kinematic particles are never predicted: at every step their positions are taken from the data.
+A model that predicts B frames per call (``model.bundle``, temporal bundling) advances B frames per
+step; the last step keeps only the frames still wanted.
 A rollout that produces a non-finite position stops there; the remaining frames are NaN and the
 first bad frame is reported, never hidden.
 
@@ -65,13 +67,14 @@ class Step:
     graph: Graph                    # what the network sees (pruned, when the runtime prunes)
     decode: torch.Tensor | None     # graph nodes decoded and integrated; None: every node (the unreduced graph)
     index: torch.Tensor             # particle of every graph node
-    rest: torch.Tensor              # [N, D] next positions where nothing is predicted (kinematic: the data's)
+    rest: torch.Tensor              # [B, N, D] next positions where nothing is predicted (kinematic: the data's)
     seconds_graph: float            # wall time of building it
 
 
 def prepare_step(simulator: LearnedSimulator, sim: Sim, window: torch.Tensor, kinematic_next: torch.Tensor,
                  runtime: Runtime, props: torch.Tensor | None, counts: dict) -> Step:
-    """The graph of one step of ``sim`` under ``runtime`` (on the window's last frame), with sleeping
+    """The graph of one step of ``sim`` under ``runtime`` (on the window's last frame; ``kinematic_next`` ``[B, N, D]``
+    holds the kinematic particles' next B positions), with sleeping
     particles and isolated unpredicted ones left out when the runtime switches say so; ``counts`` gets
     its nodes, edges, decoded and sleeping particles added."""
     t0 = time.perf_counter()
@@ -120,12 +123,13 @@ def count_graph(counts: dict, graph: Graph, decoded: int, nodes: int | None = No
 
 
 def finish_step(simulator: LearnedSimulator, step: Step, acceleration: torch.Tensor) -> torch.Tensor:
-    """[N, D] next positions of the step's sim from the network's acceleration of its decoded nodes."""
+    """``[B, N, D]``: the next B positions of the step's sim from the network's accelerations of its decoded
+    nodes (B = the model's bundle)."""
     if step.decode is None:
         return torch.where(step.graph.kinematic.unsqueeze(-1), step.rest,
                            simulator.integrate(step.graph.window, acceleration))
     nxt = step.rest
-    nxt[step.index[step.decode]] = simulator.integrate(step.graph.window[:, step.decode], acceleration)
+    nxt[:, step.index[step.decode]] = simulator.integrate(step.graph.window[:, step.decode], acceleration)
     return nxt
 
 
@@ -175,6 +179,27 @@ def keep_in_domain(position: torch.Tensor, moving: torch.Tensor, lower: torch.Te
     return position, clamped + int(outside.sum())
 
 
+def kinematic_frames(sim: Sim, t: int, bundle: int, dtype: torch.dtype) -> torch.Tensor:
+    """``[B, N, D]``: the data's positions of frames ``t .. t+B-1`` (B = ``bundle``), where the kinematic particles'
+    next positions come from; beyond the recorded frames, the last one."""
+    last = sim.n_frames - 1
+    return torch.stack([sim.position[min(t + b, last)] for b in range(bundle)]).to(dtype)
+
+
+def store_frames(positions: torch.Tensor, t: int, frames: torch.Tensor, moving: torch.Tensor,
+                 radius: torch.Tensor | None, runtime: Runtime | None, simulator: LearnedSimulator, counts: dict,
+                 before: torch.Tensor) -> int | None:
+    """Write one network call's frames ``[B, N, D]`` into ``positions`` from frame ``t`` on (those past its end are
+    dropped), each with the runtime's corrections (:func:`correct_step`, from the frame ``before`` it); the
+    first non-finite frame's index, where one is met (it and the frames after it stay NaN), else None."""
+    for b in range(min(frames.shape[0], positions.shape[0] - t)):
+        if not torch.isfinite(frames[b]).all():
+            return t + b
+        positions[t + b] = correct_step(frames[b], moving, radius, runtime, simulator, counts, before)
+        before = positions[t + b]
+    return None
+
+
 @torch.inference_mode()
 def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | None = None,
             runtime: Runtime | None = None, start: torch.Tensor | None = None, forced: bool = False,
@@ -211,10 +236,11 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
     first_bad = None
     t_graph = t_network = 0.0
     start_clock = time.perf_counter()
-    for t in range(g, total):
+    calls = 0
+    for t in range(g, total, simulator.bundle):
         window = sim.position[t - k:t].to(dtype) if forced else positions[t - k:t]
         # beyond the recorded window, kinematic particles stay where the data left them
-        kinematic_next = sim.position[min(t, sim.n_frames - 1)].to(dtype)
+        kinematic_next = kinematic_frames(sim, t, simulator.bundle, dtype)
         if runtime is None:
             t0 = time.perf_counter()
             graph = build_graph(window, sim.types, sim.kinematic, simulator.radius, props,
@@ -222,7 +248,7 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
             t_graph += time.perf_counter() - t0
             count_graph(counts, graph, graph.types.numel())
             t0 = time.perf_counter()
-            nxt = simulator.step(graph, kinematic_next)
+            frames = simulator.step(graph, kinematic_next)
             t_network += time.perf_counter() - t0           # the step's pruning and integration included
         else:
             step = prepare_step(simulator, sim, window, kinematic_next, runtime, props, counts)
@@ -231,14 +257,14 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
             with runtime.autocast(device):
                 acceleration = simulator(step.graph, decode=step.decode).to(dtype)
             t_network += time.perf_counter() - t0
-            nxt = finish_step(simulator, step, acceleration)
-        if not torch.isfinite(nxt).all():
-            first_bad = t
+            frames = finish_step(simulator, step, acceleration)
+        calls += 1
+        first_bad = store_frames(positions, t, frames, moving, radius, runtime, simulator, counts, window[-1])
+        if first_bad is not None:
             break
-        positions[t] = correct_step(nxt, moving, radius, runtime, simulator, counts, window[-1])
     devices.synchronize(device)
     seconds = time.perf_counter() - start_clock
-    steps = max((first_bad + 1 if first_bad is not None else total) - g, 1)     # steps computed
+    steps = max(calls, 1)                                   # network calls made (B frames each)
     return Rollout(positions.cpu().numpy(), g, first_bad, seconds, t_graph, step_timing(counts, steps), t_network,
                    simulator.n_models, simulator.max_neighbours)
 

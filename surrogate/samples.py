@@ -1,7 +1,9 @@
 """Simulations held in memory as tensors, and the (sim, frame) index of training samples.
 
 A training sample (article 5.4.3) is the history window ``p^{t-K+1..t}`` of one sim and the
-next frame ``p^{t+1}``; every sim of T frames yields T - K samples (``t = K-1 .. T-2``).
+next frame ``p^{t+1}``; every sim of T frames yields T - K samples (``t = K-1 .. T-2``). A model that
+predicts B frames per call (``model.bundle``) has the next B frames as its target, and T - K - B + 1
+samples per sim.
 """
 
 from __future__ import annotations
@@ -90,14 +92,15 @@ def to_device(sim: Sim, device: torch.device) -> Sim:
                    kinematic=sim.kinematic.to(device), props=None if sim.props is None else sim.props.to(device))
 
 
-def sample_index(sims: list[Sim], history: int) -> list[tuple[int, int]]:
-    """Every (sim index, last history frame t) with a next frame to predict."""
+def sample_index(sims: list[Sim], history: int, bundle: int = 1) -> list[tuple[int, int]]:
+    """Every (sim index, last history frame t) with the ``bundle`` next frames to predict
+    (``t = K-1 .. T-1-B``: T - K - B + 1 samples per sim of T frames)."""
     index = []
     for s, sim in enumerate(sims):
-        if sim.n_frames < history + 1:
+        if sim.n_frames < history + bundle:
             raise ValueError(f"{sim.path}: {sim.n_frames} frames cannot give a history of {history} "
-                             f"plus a target frame")
-        index.extend((s, t) for t in range(history - 1, sim.n_frames - 1))
+                             f"plus {bundle} target frame(s)")
+        index.extend((s, t) for t in range(history - 1, sim.n_frames - bundle))
     return index
 
 

@@ -136,8 +136,8 @@ class _Sample:
     """One training sample's inputs on the model's device."""
 
     window: torch.Tensor            # [K, N, D] the noisy history
-    following: torch.Tensor         # [N, D] the position the target acceleration leads to
-    truth: torch.Tensor             # [m, N, D] the true frames of the m pushed steps (kinematic part used)
+    following: torch.Tensor         # [B, N, D] the B positions the target accelerations lead to
+    truth: torch.Tensor             # [m, B, N, D] the true frames of the m pushed steps (kinematic part used)
     types: torch.Tensor
     kinematic: torch.Tensor
     props: torch.Tensor | None
@@ -153,7 +153,7 @@ def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, 
 
     Every sample's flip, pushforward, step count and noise are drawn in the batch's order, kept or not, so a
     process that computes a share of the batch gives each sample the draws one process gives it."""
-    k = simulator.history
+    k, bundle = simulator.history, simulator.bundle
     n = len(batch)
     flips = torch.rand(n, generator=generator) < 0.5 if mirror else torch.zeros(n, dtype=torch.bool)
     pushed = torch.rand(n, generator=generator) < pushforward if pushforward > 0 else torch.zeros(n, dtype=torch.bool)
@@ -169,14 +169,15 @@ def _draws(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[int, 
                                            generator)
         if i not in keep:
             continue
-        m = min(m, t - k + 1) if push else 0           # pushed steps need frames before the window
-        frames = sim.position[t - k + 1 - m:t + 2]
+        m = min(m, (t - k + 1) // bundle) if push else 0       # pushed steps need frames before the window
+        frames = sim.position[t - k + 1 - m * bundle:t + 1 + bundle]
         if flip:
             frames = mirror_x(frames, simulator.lower.to(frames.device), simulator.upper.to(frames.device))
-        # the target keeps the true next position relative to the noisy last one: the model learns to
+        # the target keeps the true next positions relative to the noisy last one: the model learns to
         # correct the velocity noise, not to reproduce it (Sanchez-Gonzalez et al. 2020)
-        following = frames[-1] + noise[-1] if m == 0 else frames[-1]
-        kept.append(_Sample((frames[:k] + noise).to(device), following.to(device), frames[k:k + m].to(device),
+        following = frames[-bundle:] + noise[-1] if m == 0 else frames[-bundle:]
+        pushed_truth = frames[k:k + m * bundle].reshape(m, bundle, *frames.shape[1:])
+        kept.append(_Sample((frames[:k] + noise).to(device), following.to(device), pushed_truth.to(device),
                             sim.types.to(device), sim.kinematic.to(device),
                             None if sim.props is None else sim.props.to(device)))
     return kept
@@ -231,6 +232,10 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
     the window). The model so learns to correct the errors it makes itself in a rollout, at the cost
     of m extra forward passes per such sample.
 
+    A model that predicts B frames per call (``model.bundle`` = B, temporal bundling) is trained on the
+    accelerations of the next B frames, all B in the loss; its pushed steps are calls of B frames each, so a
+    pushed sample's history ends in m B predicted frames (m at most the whole calls there are frames for).
+
     With ``pushforward_gradient`` the pushed steps keep their gradient: a multi-step loss. Each pushed step's
     acceleration error, taken against the true next frame (the target rule of the last step, so each term is
     that step's position error in normalised units), joins the loss, and the gradient of every later term
@@ -276,7 +281,7 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
         for j in range(max(len(sample.truth) for sample in drawn)):
             which = [i for i, sample in enumerate(drawn) if len(sample.truth) > j]
             earlier = stack_graphs([drawn[i].graph(windows[i], radius, cap) for i in which])
-            truth = torch.cat([drawn[i].truth[j] for i in which])
+            truth = torch.cat([drawn[i].truth[j] for i in which], dim=1)     # [B, N, D]
             if pushforward_gradient:
                 predicted, squared = _graded_step(simulator, model, earlier, truth)
                 step_errors.append(squared)
@@ -284,8 +289,8 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
                 with torch.no_grad():
                     predicted = simulator.step(earlier, truth)
             sizes = [windows[i].shape[1] for i in which]
-            for i, frame in zip(which, predicted.split(sizes), strict=True):
-                windows[i] = torch.cat([windows[i][1:], frame.unsqueeze(0)])
+            for i, frames in zip(which, predicted.split(sizes, dim=1), strict=True):
+                windows[i] = torch.cat([windows[i], frames])[-len(windows[i]):]
         graphs = [sample.graph(window, radius, cap) for window, sample in zip(windows, drawn, strict=True)]
         targets = [simulator.target(window, sample.following) for window, sample in zip(windows, drawn, strict=True)]
         stacked = stack_graphs(graphs)
@@ -311,11 +316,13 @@ def batch_loss(simulator: LearnedSimulator, sims: list[Sim], batch: list[tuple[i
 
 def _graded_step(simulator: LearnedSimulator, model: torch.nn.Module, graph: Graph, truth: torch.Tensor
                  ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One pushed step with its gradient: the next positions (``truth``'s for the unpredicted particles) and the
-    squared error of the moving particles' normalised acceleration against the one reaching ``truth``."""
+    """One pushed step with its gradient: the next B positions ``[B, N, D]`` (``truth``'s for the unpredicted
+    particles) and the squared error of the moving particles' normalised accelerations against those reaching
+    ``truth``."""
     where, window, acceleration = moving_acceleration(model, graph)
-    squared = (acceleration.float() - simulator.target(window, truth[where])) ** 2
-    nxt = truth.index_put((where,), simulator.integrate(window, acceleration).to(truth.dtype))
+    squared = (acceleration.float() - simulator.target(window, truth[:, where])) ** 2
+    frames = simulator.integrate(window, acceleration).to(truth.dtype)
+    nxt = truth.transpose(0, 1).index_put((where,), frames.transpose(0, 1)).transpose(0, 1)
     return nxt, squared
 
 
@@ -380,7 +387,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
     train_sims = [load_sim(p, stats, props) for p in tqdm(train_paths, desc="load train", disable=not progress)]
     valid_sims = [load_sim(p, stats, props) for p in valid_paths] if world.main else []   # rank 0 validates
     k = int(model_cfg["history"])
-    index = sample_index(train_sims, k)
+    index = sample_index(train_sims, k, int(model_cfg.get("bundle", 1)))
     activity_weight = float(train_cfg.get("activity_weight", 0))        # optional; absent: uniform epochs
     activity_final = train_cfg.get("activity_weight_final")             # optional; absent: the same every epoch
     activity_final = None if activity_final is None else float(activity_final)

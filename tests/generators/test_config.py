@@ -77,6 +77,20 @@ def test_weight_decay_is_an_optional_number_in_0_1_set_only_for_slide_small():
         config.load({"slide_small": {"train": {"weight_decay": 2}}})
 
 
+def test_bundle_is_an_optional_positive_integer_absent_from_every_default():
+    """No default sets model.bundle (one frame per call, the article's model); 2 is accepted in a scene and a
+    benchmark, 0 and a word are refused by key."""
+    defaults = config.load()
+    assert not any("bundle" in section["model"] for section in defaults.values()
+                   if isinstance(section, dict) and isinstance(section.get("model"), dict))
+    assert config.load({"slide_samer": {"model": {"bundle": 2}}})["slide_samer"]["model"]["bundle"] == 2
+    assert config.load({"slide": {"model": {"bundle": 3}}})["slide"]["model"]["bundle"] == 3
+    with pytest.raises(config.ConfigError, match=r"slide_small\.model\.bundle.*'minimum': 1"):
+        config.load({"slide_small": {"model": {"bundle": 0}}})
+    with pytest.raises(config.ConfigError, match=r"slide\.model\.bundle"):
+        config.load({"slide": {"model": {"bundle": "two"}}})
+
+
 def test_edge_features_are_an_optional_list_of_known_names_and_gap_needs_the_radius_property():
     """A list of known names is accepted; an unknown name, and a gap without the radius property, are refused by
     key when the config is read, before anything runs."""

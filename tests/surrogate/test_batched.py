@@ -9,6 +9,7 @@ import torch
 
 from surrogate import batched, rollout, runtime
 from surrogate.samples import load_sim
+from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 
@@ -99,3 +100,22 @@ def test_keep_in_domain_is_applied_per_sim(untrained):
     assert (results[1].position[k:, moving.numpy()] <= upper + 1e-6).all()
     for result, single in zip(results, singles, strict=True):
         np.testing.assert_allclose(result.position, single.position, rtol=1e-5, atol=1e-4)
+
+
+def test_a_bundled_model_rolls_out_in_a_batch_as_alone(tiny_dataset, untrained):
+    """Three frames per call over sims of 6 and 4 predicted frames (two calls each, the last frame of the
+    shorter sim's second call dropped): every batched rollout equals its single rollout."""
+    simulator, _ = untrained
+    torch.manual_seed(0)
+    bundled = LearnedSimulator(simulator.stats, {**simulator.model_config, "bundle": 3}).eval()
+    prepared = runtime.apply(bundled, PLAIN)
+    sims = sims_of_several_sizes(tiny_dataset, untrained)
+    results = batched.rollout_batch(prepared, sims, PLAIN)
+    for sim, result in zip(sims, results, strict=True):
+        single = rollout.rollout(prepared, sim, runtime=PLAIN)
+        assert result.n_predicted == single.n_predicted == sim.n_frames - prepared.history
+        k = prepared.history
+        moved = np.abs(single.position[-1] - single.position[k - 1]).max()
+        assert moved > 1e-3
+        np.testing.assert_allclose(result.position, single.position, rtol=1e-9, atol=1e-9 * moved)
+        assert {key: result.timing[key] for key in single.timing} == single.timing

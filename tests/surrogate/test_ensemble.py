@@ -84,11 +84,27 @@ def test_two_models_step_with_exactly_the_mean_of_their_accelerations(data):
     with torch.no_grad():
         accelerations = [m.denormalise(m(reduced, decode=moving)) for m in (a, b)]
     mean = (accelerations[0] + accelerations[1]) / 2
-    expected = advance(reduced.window[:, moving], mean)
+    expected = advance(reduced.window[:, moving], mean)[0]
     assert not torch.allclose(accelerations[0], accelerations[1])          # two different models
     assert torch.equal(torch.from_numpy(result.position[k][index[moving].numpy()]), expected)
-    each = [advance(reduced.window[:, moving], acc) for acc in accelerations]
+    each = [advance(reduced.window[:, moving], acc)[0] for acc in accelerations]
     torch.testing.assert_close(expected, (each[0] + each[1]) / 2)          # between the two models' own steps
+
+
+def test_two_bundled_models_step_with_the_mean_of_their_accelerations_over_the_bundle(data):
+    """Two frames per call: both predicted frames of the ensemble's first call are eq. (1) applied twice to the
+    mean of the two models' physical accelerations of each frame."""
+    a, b, sim = model(data["stats"], 1, bundle=2), model(data["stats"], 2, bundle=2), sim_of(data)
+    k = a.history
+    result = rollout(Ensemble([a, b]), sim, n_frames=k + 2)
+    reduced, index = prune_isolated(build_graph(sim.position[:k], sim.types, sim.kinematic, a.radius))
+    moving = (~reduced.kinematic).nonzero().squeeze(1)
+    with torch.no_grad():
+        mean = sum(m.denormalise(m(reduced, decode=moving)) for m in (a, b)) / 2
+    assert mean.shape == (len(moving), 4)
+    expected = advance(reduced.window[:, moving], mean)
+    np.testing.assert_allclose(result.position[k:k + 2][:, index[moving].numpy()], expected.numpy(), rtol=1e-6,
+                               atol=1e-6)
 
 
 def test_models_with_other_statistics_of_motion_but_the_same_inputs_are_an_ensemble(data):
@@ -101,6 +117,7 @@ def test_models_with_other_statistics_of_motion_but_the_same_inputs_are_an_ensem
 @pytest.mark.parametrize("key, model_change, stats_change", [
     ("model.history", {"history": 4}, {}),
     ("model.max_neighbours", {"max_neighbours": 4}, {}),
+    ("model.bundle", {"bundle": 2}, {}),
     ("stats.connectivity_radius", {}, {"connectivity_radius": 2.0}),
     ("stats.frame_interval", {}, {"frame_interval": 0.2}),
     ("stats.bounds", {}, {"bounds": [[0.0, 20.0], [0.0, 16.0]]}),

@@ -1,3 +1,4 @@
+import copy
 import json
 
 import numpy as np
@@ -5,10 +6,10 @@ import pytest
 import torch
 
 from generators import h5md
-from surrogate import rollout
+from surrogate import rollout, runtime
 from surrogate.baseline import constant_velocity
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator
+from surrogate.simulator import LearnedSimulator, build_graph
 
 pytestmark = pytest.mark.engine
 
@@ -110,3 +111,35 @@ def test_forced_rollout_predicts_every_frame_from_the_datas_window(untrained):
     np.testing.assert_allclose(result.position[4:], 2 * data[3:-1] - data[2:-2], atol=1e-4)
     with pytest.raises(ValueError, match="a forced rollout needs the data's frames"):
         rollout.rollout(simulator, sim, n_frames=sim.n_frames + 1, forced=True)
+
+
+def test_a_bundled_rollout_predicts_b_frames_per_call_from_the_last_window(tiny_dataset):
+    """A model of bundle 4 over the 6 predicted frames: two calls. Frames K .. K+3 are the first call's, from the
+    data's window; frames K+4 and K+5 the first two of the second call's, from the four frames predicted before;
+    the kinematic particles stay on the data, and the runtime's path (the evaluate stage's) predicts the same."""
+    stats = json.loads(tiny_dataset["stats_json"])
+    table = tiny_dataset["split_table"]
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, {**tiny_dataset["model"], "bundle": 4}).eval()
+    sim = load_sim(table.loc[table["split"] == "test", "path"].iloc[0], stats)
+    k, n = simulator.history, sim.n_frames
+    assert (k, n) == (4, 10)
+    result = rollout.rollout(simulator, sim)
+    with torch.no_grad():
+        first = simulator.step(build_graph(sim.position[:k], sim.types, sim.kinematic, simulator.radius),
+                               sim.position[k:k + 4])
+        later = torch.stack([sim.position[min(t, n - 1)] for t in range(k + 4, k + 8)])
+        second = simulator.step(build_graph(first, sim.types, sim.kinematic, simulator.radius), later)
+    assert result.first_nonfinite is None and result.n_predicted == n - k
+    np.testing.assert_array_equal(result.position[k:k + 4], first.numpy())
+    np.testing.assert_array_equal(result.position[k + 4:], second[:2].numpy())
+    kin = sim.kinematic.numpy()
+    np.testing.assert_array_equal(result.position[:, kin], sim.position.numpy()[:, kin])
+    # counts are per network call: two calls of every particle's node (per frame it would be a third of that)
+    assert result.timing["nodes_per_step"] == sim.kinematic.numel()
+    rt = runtime.Runtime(split_edge_mlp=True, skip_kinematic_pairs=True, prune_isolated=True, precision="float32",
+                         sleep_speed=None, keep_in_domain=False, compile=False)
+    prepared = runtime.apply(copy.deepcopy(simulator), rt)
+    configured = rollout.rollout(prepared, sim, runtime=rt)
+    moved = np.abs(result.position[-1] - result.position[k - 1]).max()
+    np.testing.assert_allclose(configured.position, result.position, rtol=1e-5, atol=1e-5 * moved)

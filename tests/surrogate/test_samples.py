@@ -44,6 +44,9 @@ def test_every_frame_with_a_successor_is_a_sample(tmp_path):
     assert sample_index([sim, sim], history=3) == [(0, t) for t in range(2, 6)] + [(1, t) for t in range(2, 6)]
     with pytest.raises(ValueError, match="7 frames cannot give a history of 7"):
         sample_index([sim], history=7)
+    assert sample_index([sim], history=3, bundle=2) == [(0, t) for t in range(2, 5)]     # two frames to predict
+    with pytest.raises(ValueError, match="7 frames cannot give a history of 6 plus 2 target frame"):
+        sample_index([sim], history=6, bundle=2)
 
 
 def test_activity_is_the_mean_squared_target_acceleration_of_the_moving_particles(tmp_path):

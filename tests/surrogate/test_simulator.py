@@ -33,15 +33,17 @@ def test_integration_is_eq_1_and_target_inverts_it():
     acc = torch.randn(30, 2, dtype=torch.float64)
     nxt = sim.integrate(g.window, acc)
     physical = acc * sim.acceleration_std + sim.acceleration_mean
-    torch.testing.assert_close(nxt, 2 * g.window[-1] - g.window[-2] + physical)
+    assert nxt.shape == (1, 30, 2)                        # one frame per call: a bundle of one
+    torch.testing.assert_close(nxt[0], 2 * g.window[-1] - g.window[-2] + physical)
     torch.testing.assert_close(sim.target(g.window, nxt), acc)
+    torch.testing.assert_close(sim.target(g.window, nxt[0]), acc)      # one frame may come without its axis
 
 
 def test_step_never_predicts_kinematic_particles():
     sim = LearnedSimulator(STATS, MODEL).double()
     g = sample()
     supplied = torch.full((30, 2), -7.0, dtype=torch.float64)
-    nxt = sim.step(g, supplied)
+    nxt = sim.step(g, supplied)[0]
     assert torch.all(nxt[g.kinematic] == -7.0) and torch.all(nxt[~g.kinematic] != -7.0)
 
 
@@ -72,5 +74,59 @@ def test_pruning_drops_only_unlinked_kinematic_particles_and_changes_no_predicti
     moving = (~reduced.kinematic).nonzero().squeeze(1)
     torch.testing.assert_close(sim(reduced, decode=moving), sim(full)[~kinematic], rtol=1e-12, atol=1e-12)
     supplied = window[-1] + 1.0
-    unpruned = torch.where(kinematic.unsqueeze(-1), supplied, sim.integrate(window, sim(full)))
-    torch.testing.assert_close(sim.step(full, supplied), unpruned, rtol=1e-12, atol=1e-12)
+    unpruned = torch.where(kinematic.unsqueeze(-1), supplied, sim.integrate(window, sim(full)))[0]
+    torch.testing.assert_close(sim.step(full, supplied)[0], unpruned, rtol=1e-12, atol=1e-12)
+
+
+def test_a_bundle_integrates_eq_1_frame_after_frame_and_target_inverts_it():
+    """Three frames per call: frame b's acceleration in columns 2b..2b+1, each frame from the two before it."""
+    sim = LearnedSimulator(STATS, {**MODEL, "bundle": 3}).double()
+    g = sample()
+    acc = torch.randn(30, 6, dtype=torch.float64)
+    frames = sim.integrate(g.window, acc)
+    assert frames.shape == (3, 30, 2)
+    path = [g.window[-2], g.window[-1]]
+    for b in range(3):
+        physical = acc[:, 2 * b:2 * b + 2] * sim.acceleration_std + sim.acceleration_mean
+        path.append(2 * path[-1] - path[-2] + physical)
+        torch.testing.assert_close(frames[b], path[-1])
+    torch.testing.assert_close(sim.target(g.window, frames), acc)
+    assert sim(g).shape == (30, 6)
+
+
+def test_a_bundled_step_keeps_every_frame_of_the_kinematic_particles():
+    sim = LearnedSimulator(STATS, {**MODEL, "bundle": 2}).double()
+    g = sample()
+    supplied = torch.stack([torch.full((30, 2), -7.0), torch.full((30, 2), -8.0)]).double()
+    frames = sim.step(g, supplied)
+    assert frames.shape == (2, 30, 2)
+    assert torch.all(frames[0, g.kinematic] == -7.0) and torch.all(frames[1, g.kinematic] == -8.0)
+    torch.testing.assert_close(frames[:, ~g.kinematic], sim.integrate(g.window, sim(g))[:, ~g.kinematic])
+
+
+def test_a_bundle_of_one_is_the_article_model_bit_for_bit():
+    """bundle: 1 builds the same network from the same seed and predicts the same numbers as no bundle key."""
+    torch.manual_seed(3)
+    plain = LearnedSimulator(STATS, MODEL).double()
+    torch.manual_seed(3)
+    one = LearnedSimulator(STATS, {**MODEL, "bundle": 1}).double()
+    g = sample()
+    assert torch.equal(plain(g), one(g))
+
+
+def test_a_bad_bundle_is_refused_by_name():
+    for bad in (0, -2, 1.5, True, "2"):
+        try:
+            LearnedSimulator(STATS, {**MODEL, "bundle": bad})
+        except ValueError as exc:
+            assert "model.bundle" in str(exc) and "integer >= 1" in str(exc)
+        else:
+            raise AssertionError(f"bundle {bad!r} was accepted")
+    sim = LearnedSimulator(STATS, {**MODEL, "bundle": 2}).double()
+    g = sample()
+    try:
+        sim.target(g.window, g.window[-1])
+    except ValueError as exc:
+        assert "2 frame(s) per call" in str(exc)
+    else:
+        raise AssertionError("a one-frame target was accepted by a two-frame model")

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from surrogate import checkpoint, devices, train
-from surrogate.samples import load_sim
+from surrogate.samples import load_sim, sample_index
 from surrogate.simulator import build_graph
 
 pytestmark = pytest.mark.engine
@@ -130,7 +130,7 @@ def test_pushforward_sample_starts_from_the_models_own_prediction(tiny_dataset):
     earlier = sim.position[t - k:t]
     with torch.no_grad():
         predicted = simulator.step(build_graph(earlier, sim.types, sim.kinematic, simulator.radius), sim.position[t])
-    window = torch.cat([sim.position[t - k + 1:t], predicted.unsqueeze(0)])
+    window = torch.cat([sim.position[t - k + 1:t], predicted])
     graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
     expected = ((simulator(graph) - simulator.target(window, sim.position[t + 1])) ** 2)[~sim.kinematic].mean()
     got = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0), pushforward=1.0)
@@ -192,7 +192,7 @@ def test_multi_step_pushforward_feeds_m_predicted_frames(tiny_dataset):
             for j in range(m):
                 nxt = simulator.step(build_graph(window, sim.types, sim.kinematic, simulator.radius),
                                      sim.position[t + 1 - m + j])
-                window = torch.cat([window[1:], nxt.unsqueeze(0)])
+                window = torch.cat([window[1:], nxt])
         graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
         return ((simulator(graph) - simulator.target(window, sim.position[t + 1])) ** 2)[~sim.kinematic].mean()
 
@@ -227,7 +227,7 @@ def test_pushforward_gradient_is_the_multi_step_loss_through_the_rollout(tiny_da
         first = simulator(build_graph(earlier, sim.types, sim.kinematic, simulator.radius))
         first_error = ((first - simulator.target(earlier, sim.position[t])) ** 2)[moving]
         predicted = sim.position[t].clone()
-        predicted[moving] = simulator.integrate(earlier, first)[moving]
+        predicted[moving] = simulator.integrate(earlier, first)[0, moving]
         if detach:
             predicted = predicted.detach()
         window = torch.cat([sim.position[t - k + 1:t], predicted.unsqueeze(0)])
@@ -481,3 +481,38 @@ def test_compiled_training_follows_the_eager_run_to_float32_rounding(tiny_datase
     plain.load_state_dict(saved["model"])                                      # the same keys as an eager model's
     reference = checkpoint.load(tmp_path / "eager" / "best.pt")["model"]
     assert max(float((saved["model"][k] - reference[k]).abs().max()) for k in reference) < 1e-3
+
+
+def test_a_bundled_model_is_trained_on_the_next_b_frames(tiny_dataset):
+    """bundle 2, no noise: the loss is the squared error of both next frames' normalised accelerations; at p = 1
+    (one pushed call) the history ends in the two frames the model predicted from the window two frames earlier.
+    A sim has T - K - B + 1 samples."""
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, {**tiny_dataset["model"], "bundle": 2})
+    split = tiny_dataset["split_table"]
+    sim = load_sim(split.loc[split["split"] == "train", "path"].iloc[0], stats)
+    k, t = simulator.history, simulator.history + 2
+    assert sample_index([sim], k, 2) == [(0, s) for s in range(k - 1, sim.n_frames - 2)]
+    moving = ~sim.kinematic
+
+    def loss_from(window):
+        graph = build_graph(window, sim.types, sim.kinematic, simulator.radius)
+        target = simulator.target(window, sim.position[t + 1:t + 3])
+        assert target.shape == (sim.kinematic.numel(), 4)
+        return ((simulator(graph) - target) ** 2)[moving].mean()
+
+    plain = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0))
+    torch.testing.assert_close(plain, loss_from(sim.position[t - k + 1:t + 1]))
+    earlier = sim.position[t - k - 1:t - 1]
+    with torch.no_grad():
+        predicted = simulator.step(build_graph(earlier, sim.types, sim.kinematic, simulator.radius),
+                                   sim.position[t - 1:t + 1])
+    pushed = train.batch_loss(simulator, [sim], [(0, t)], 0.0, torch.Generator().manual_seed(0), pushforward=1.0)
+    torch.testing.assert_close(pushed, loss_from(torch.cat([sim.position[t - k + 1:t - 1], predicted])))
+    assert not torch.isclose(pushed, plain)
+    one_frame_before = [(0, k)]                    # one frame before the window: no whole call to push
+    torch.testing.assert_close(
+        train.batch_loss(simulator, [sim], one_frame_before, 0.0, torch.Generator(), pushforward=1.0),
+        train.batch_loss(simulator, [sim], one_frame_before, 0.0, torch.Generator()))
