@@ -15,10 +15,22 @@ Files in the output folder:
 * ``snapshot_<c>.pt`` (with ``lr_cycles`` > 1): the validated weights at the end of learning-rate cycle c, in
   best.pt's format, for a snapshot ensemble (``graphdem evaluate --checkpoint snapshot_*.pt``);
 * ``last.pt``: the full training state (weights, optimiser, position in the epoch, history,
-  best weights). It is written every ``checkpoint_every`` steps and at the end of every epoch.
+  best weights; in a fine-tuning phase also the fine-tuning optimiser and the one-step phase's end state).
+  It is written every ``checkpoint_every`` steps and at the end of every epoch.
   A run that finds an unfinished ``last.pt`` with the same model, data and training settings
   continues from it, with the same sample order and noise as an uninterrupted run; a finished or
   incompatible one is replaced by a fresh run.
+
+With ``train.finetune`` set (optional; absent: none), the ``epochs`` of one-step training are followed by
+``finetune.epochs`` epochs of rollout fine-tuning (:mod:`surrogate.rollout_loss`): from the best validated
+weights of the one-step epochs, a fresh optimiser (Adam, or AdamW with the same ``weight_decay``) at the constant
+rate ``finetune.lr`` minimises the rollout MSE of ``finetune.batch_size`` train sims per step, the gradient clipped
+to the norm ``finetune.max_grad_norm`` and backpropagated through the rollout; with ``finetune.ema_decay`` its
+weights' moving average is what is validated. Validation and the best checkpoint run on across both phases (if
+no fine-tuning epoch beats the one-step best, best.pt stays the one-step model); history.csv gets a ``phase``
+column (``onestep``, ``finetune``) and a fine-tuning epoch's ``train_loss`` is its mean rollout loss. A finished
+(or interrupted) run whose settings differ only in ``finetune`` is continued, not retrained: its fine-tuning
+phase starts again from the end of its one-step epochs, as a run trained in one go would.
 """
 
 from __future__ import annotations
@@ -41,6 +53,7 @@ from surrogate.errors import TrainingDiverged
 from surrogate.neighbours import PERCENTILE, Histogram
 from surrogate.noise import random_walk_position_noise
 from surrogate.rollout import rollout, rollout_mse
+from surrogate.rollout_loss import rollout_loss
 from surrogate.samples import (
     Sim,
     activity_weights,
@@ -61,6 +74,8 @@ HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
 # the columns a neighbour cap adds to history.csv (sums over the epoch's training graphs)
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
+# train.finetune's keys (docs/surrogate.md, Rollout fine-tuning); ema_decay may be null
+FINETUNE_KEYS = ("epochs", "lr", "batch_size", "frames", "max_grad_norm", "ema_decay")
 
 
 def log_cap(cap: int, stats: dict) -> None:
@@ -342,8 +357,31 @@ def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
+def check_finetune(cfg) -> dict | None:
+    """``train.finetune`` as given (None: no fine-tuning), or a ValueError naming the key and what is allowed."""
+    if cfg is None:
+        return None
+    if not isinstance(cfg, dict) or set(cfg) != set(FINETUNE_KEYS):
+        got = sorted(cfg) if isinstance(cfg, dict) else cfg
+        raise ValueError(f"train.finetune = {got!r}: allowed null or a mapping of exactly {', '.join(FINETUNE_KEYS)}")
+    rules = {"epochs": lambda v: isinstance(v, int) and v >= 1, "batch_size": lambda v: isinstance(v, int) and v >= 1,
+             "lr": lambda v: isinstance(v, int | float) and v > 0, "max_grad_norm": lambda v: isinstance(
+                 v, int | float) and v > 0, "frames": lambda v: v is None or (isinstance(v, int) and v >= 1),
+             "ema_decay": lambda v: v is None or (isinstance(v, int | float) and 0 <= v < 1)}
+    for key, ok in rules.items():
+        if isinstance(cfg[key], bool) or not ok(cfg[key]):
+            allowed = {"epochs": "an integer >= 1", "batch_size": "an integer >= 1", "lr": "a number > 0",
+                       "max_grad_norm": "a number > 0", "frames": "null (the whole sim) or an integer >= 1",
+                       "ema_decay": "null or a number in [0, 1)"}[key]
+            raise ValueError(f"train.finetune.{key} = {cfg[key]!r}: allowed {allowed}")
+    return cfg
+
+
 def _settings(model_cfg: dict, train_cfg: dict, stats: dict, train_ids: list[str]) -> dict:
-    fixed = {k: v for k, v in train_cfg.items() if k not in _RESUMABLE_CHANGES}
+    """What a run's last.pt must share with the run that continues it: everything but the keys that may change
+    (``epochs``, ``patience``, ``checkpoint_every``) and the fine-tuning phase, which a continued run redoes when
+    it changed."""
+    fixed = {k: v for k, v in train_cfg.items() if k not in _RESUMABLE_CHANGES and k != "finetune"}
     return {"model": model_cfg, "train": fixed, "stats": stats, "train_sims": train_ids}
 
 
@@ -417,6 +455,10 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         log.info("train.%s = %.6g, derived (%s)", name, train_cfg[name], rule["rule"])
     seed = int(train_cfg["seed"])
     precision = str(train_cfg["precision"])
+    finetune = check_finetune(train_cfg.get("finetune"))
+    if finetune is not None and world.distributed:
+        raise ValueError(f"train.finetune: rollout fine-tuning runs in one training process, got {world.size} "
+                         f"(set launch.processes: 1, or finetune: null)")
     settings = _settings(model_cfg, train_cfg, stats, [s.id for s in train_sims])
     if world.distributed and batch_size < world.size:
         log.warning("batch_size %d < %d processes: %d of them compute a sample with weight 0 at every step",
@@ -443,18 +485,41 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             runtime.compile_forward(validator)
         log.info("train.compile: the forward passes of training and validation run through torch.compile")
     last = out_dir / "last.pt"
+    tuner = None                                   # the fine-tuning phase's optimiser, moving average and start
+    rolled_back = False                            # a run whose fine-tuning was removed ends at its one-step end
     if last.exists() and not fresh:
         try:
             saved = checkpoint.load(last)
         except checkpoint.CheckpointError as exc:
             log.warning("ignoring %s: %s", last, exc)
             saved = None
+        saved_state = {} if saved is None else saved["json"].get("state", {})
+        same_finetune = saved is not None and saved["json"].get("train", {}).get("finetune") == json.loads(
+            json.dumps(finetune))
         if saved is None:
             pass
-        elif saved["json"].get("state", {}).get("finished"):
-            log.info("%s is a finished run: starting a fresh one", last)
         elif saved["json"].get("settings") != json.loads(json.dumps(settings)):
             log.info("%s was trained with other settings or data: starting a fresh run", last)
+        elif "finetune" in saved_state and finetune is None:
+            state, best_weights = _one_step_end(saved, finished=True)
+            rolled_back = True
+            simulator.load_state_dict(saved["model"])
+            log.info("%s: train.finetune was removed; the run ends where its one-step epochs ended (epoch %d)",
+                     last, state["epoch"])
+        elif (finetune is not None and (not same_finetune or "finetune" not in saved_state)
+              and (saved_state.get("finished") or "finetune" in saved_state)
+              and saved_state.get("total_steps") == int(train_cfg["epochs"]) * n_batches):
+            # its one-step epochs are done and its fine-tuning (none, or another) is not this one: redo that phase
+            state, best_weights = _one_step_end(saved, finished=False)
+            state["epoch"] = int(train_cfg["epochs"])          # also after an early stop: fine-tuning is next
+            simulator.load_state_dict(saved["model"])
+            optimiser.load_state_dict(saved["optimiser"])
+            if average is not None:
+                average = {k: v.to(device) for k, v in saved["average_model"].items()}
+            log.info("%s: its %d one-step epochs are done; fine-tuning (train.finetune) starts from their end",
+                     last, len(state["history"]))
+        elif saved_state.get("finished"):
+            log.info("%s is a finished run: starting a fresh one", last)
         else:
             simulator.load_state_dict(saved["model"])
             optimiser.load_state_dict(saved["optimiser"])
@@ -462,6 +527,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             if average is not None:
                 average = {k: v.to(device) for k, v in saved["average_model"].items()}
             state = saved["json"]["state"]
+            if "finetune" in state:
+                tuner = _Tuner.resumed(saved, simulator, train_cfg, finetune, device)
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
             planned = state["total_steps"] // n_batches          # the schedule fixed when the run started
@@ -483,14 +550,19 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             payload["best_model"] = best_weights
         if average is not None:
             payload["average_model"] = average
+        if tuner is not None:
+            payload.update(tuner.payload())
         checkpoint.save(last, payload)
 
     def save_outputs() -> None:
         # a run resumed from a last.pt written before the hardware columns has shorter rows: blank there (such a
         # run has no neighbour cap: the cap is newer than the hardware columns)
         columns = list(HISTORY_COLUMNS) + (CAP_HISTORY if cap is not None else [])
-        history = pd.DataFrame([row + [None] * (len(columns) - len(row)) for row in state["history"]],
+        history = pd.DataFrame([row[:len(columns)] + [None] * (len(columns) - len(row)) for row in state["history"]],
                                columns=columns)
+        if finetune is not None:                   # an epoch past the one-step ones is a fine-tuning epoch
+            start = state.get("finetune", {}).get("start_epoch", int(train_cfg["epochs"]))
+            history["phase"] = np.where(history["epoch"] > start, "finetune", "onestep")
         with atomic_path(out_dir / "history.csv") as tmp:
             history.to_csv(tmp, index=False)
         if best_weights is not None:
@@ -499,43 +571,64 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                 "valid_rollout_mse": state["best_mse"], "step": state["best_step"]}})
 
     epochs, patience = int(train_cfg["epochs"]), int(train_cfg["patience"])
+    total_epochs = epochs + (finetune["epochs"] if finetune is not None else 0)
     every = int(train_cfg["checkpoint_every"])
     steps_this_call = 0
     simulator.train()
     clock = time.perf_counter()
-    while state["epoch"] < epochs and not state["finished"]:
+    while state["epoch"] < total_epochs and not state["finished"]:
         epoch = state["epoch"]
-        order = epoch_order(len(index), draw_weights(epoch), _generator(seed, epoch))
-        bar = tqdm(range(state["batch"], n_batches), desc=f"epoch {epoch + 1}/{epochs}", unit="batch",
-                   disable=not progress, mininterval=2.0)
+        if epoch >= epochs:                            # the fine-tuning phase (train.finetune)
+            if tuner is None:
+                tuner = _Tuner.start(state, simulator, optimiser, best_weights, train_cfg, finetune, device)
+            order = torch.randperm(len(train_sims), generator=_generator(seed, epoch)).tolist()
+            size = int(finetune["batch_size"])
+            batches = [[train_sims[i] for i in order[b:b + size]] for b in range(0, len(order), size)]
+        else:
+            order = epoch_order(len(index), draw_weights(epoch), _generator(seed, epoch))
+            batches = None
+        count = len(batches) if batches is not None else n_batches
+        bar = tqdm(range(state["batch"], count), desc=f"epoch {epoch + 1}/{total_epochs}"
+                   + (" (fine-tuning)" if batches is not None else ""), unit="batch", disable=not progress,
+                   mininterval=2.0)
         for b in bar:
-            batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
-            counts = {"capped": 0, "dropped": 0, "edges": 0} if cap is not None else None
-            loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
-                              _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
-                              pushforward=float(train_cfg["pushforward"]),
-                              pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
-                              precision=precision, counts=counts,
-                              pushforward_gradient=bool(train_cfg.get("pushforward_gradient", False)),
-                              type_balance=float(train_cfg.get("type_balance", 0.0)))
-            value = distributed.mean(loss, world)          # the batch's loss, the same on every process
-            if counts is not None:                         # summed over the processes' shares of the batch
-                summed = distributed.total(torch.tensor([counts["capped"], counts["dropped"], counts["edges"]],
-                                                        dtype=torch.int64, device=device), world)
-                for key, number in zip(("capped_sum", "dropped_sum", "edges_sum"), summed.tolist(), strict=True):
-                    state[key] += int(number)
+            if batches is not None:
+                loss = tuner.loss(simulator, batches[b], finetune["frames"], _generator(seed, epoch, b, 2),
+                                  precision)
+                value = float(loss.detach())
+            else:
+                batch = [index[i] for i in order[b * batch_size:(b + 1) * batch_size]]
+                counts = {"capped": 0, "dropped": 0, "edges": 0} if cap is not None else None
+                loss = batch_loss(simulator, train_sims, batch, float(train_cfg["noise_std"]),
+                                  _generator(seed, epoch, b, 1), mirror=bool(train_cfg["mirror"]),
+                                  pushforward=float(train_cfg["pushforward"]),
+                                  pushforward_steps=int(train_cfg["pushforward_steps"]), world=world, model=model,
+                                  precision=precision, counts=counts,
+                                  pushforward_gradient=bool(train_cfg.get("pushforward_gradient", False)),
+                                  type_balance=float(train_cfg.get("type_balance", 0.0)))
+                value = distributed.mean(loss, world)          # the batch's loss, the same on every process
+                if counts is not None:                         # summed over the processes' shares of the batch
+                    summed = distributed.total(torch.tensor([counts["capped"], counts["dropped"], counts["edges"]],
+                                                            dtype=torch.int64, device=device), world)
+                    for key, number in zip(("capped_sum", "dropped_sum", "edges_sum"), summed.tolist(), strict=True):
+                        state[key] += int(number)
             if not math.isfinite(value):
-                samples = ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch)
+                where = (", ".join(sim.id for sim in batches[b]) if batches is not None
+                         else ", ".join(f"{train_sims[s].id} frame {t}" for s, t in batch))
                 raise TrainingDiverged(
                     f"non-finite training loss ({value}) at step {state['step'] + 1} (epoch {epoch + 1}, "
-                    f"batch {b + 1}) on samples: {samples}; the last good state is in {last}")
-            for group in optimiser.param_groups:
-                group["lr"] = learning_rate(train_cfg, state["step"], state["total_steps"])
-            optimiser.zero_grad(set_to_none=True)
-            loss.backward()
-            optimiser.step()
-            if average is not None:
-                ema_update(average, simulator, float(decay), state["step"])
+                    f"batch {b + 1}) on {'the rollouts of ' if batches is not None else 'samples: '}{where}; "
+                    f"the last good state is in {last}")
+            if batches is not None:
+                tuner.step(loss, simulator, state)
+            else:
+                for group in optimiser.param_groups:
+                    group["lr"] = learning_rate(train_cfg, state["step"], state["total_steps"])
+                optimiser.zero_grad(set_to_none=True)
+                loss.backward()
+                optimiser.step()
+                if average is not None:
+                    ema_update(average, simulator, float(decay), state["step"])
             state["step"] += 1
             state["batch"] = b + 1
             state["loss_sum"] += value
@@ -557,9 +650,15 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                     save_last()
         bar.close()
         if world.main:
-            best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
-                                      optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
-            if state["epoch"] in snapshots:            # a cycle ended: keep its validated weights
+            if batches is not None:                    # fine-tuning: its own average, every epoch to the end
+                best_weights = _end_epoch(state, tuner.validator(validator, simulator), tuner.average, valid_sims,
+                                          total_epochs, total_epochs, tuner.lr, clock, hardware) or best_weights
+            else:
+                best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
+                                          optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
+                if state["finished"] and finetune is not None:     # the one-step phase ended: fine-tuning next
+                    state.update(finished=False, epoch=epochs)
+            if epoch + 1 in snapshots and batches is None:         # a cycle ended: keep its validated weights
                 checkpoint.save(out_dir / f"snapshot_{snapshots.index(state['epoch']) + 1}.pt", {
                     "model": {k: v.detach().to("cpu", copy=True) for k, v in validator.state_dict().items()},
                     "json": {"model": model_cfg, "train": train_cfg, "stats": stats, "epoch": state["epoch"],
@@ -568,12 +667,91 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             save_last()
         state = distributed.from_main(state, world)    # the others wait here for rank 0's validation
         clock = time.perf_counter()
+    if rolled_back and world.main:                 # its outputs are rewritten as they stood after the one-step epochs
+        save_outputs()
+        save_last()
     if state["best_epoch"] == -1:
         raise ValueError(f"no epoch was completed (epochs = {epochs}): no best checkpoint")
     if not math.isfinite(state["best_mse"]):
         log.warning("every validation rollout blew up: best.pt holds epoch %d only because it came first",
                     state["best_epoch"])
     return state
+
+
+class _Tuner:
+    """The rollout fine-tuning phase (``train.finetune``): its optimiser at the constant rate ``lr``, the gradient
+    clip, the moving average of its weights (None without ``ema_decay``) and where the phase started."""
+
+    def __init__(self, optimiser: torch.optim.Optimizer, cfg: dict, average: dict | None, start_step: int,
+                 onestep_best: dict):
+        self.optimiser, self.cfg, self.average, self.start_step = optimiser, cfg, average, start_step
+        self.onestep_best = onestep_best           # the one-step phase's best weights, to redo the phase from
+
+    @property
+    def lr(self) -> float:
+        return float(self.cfg["lr"])
+
+    @classmethod
+    def start(cls, state: dict, simulator: LearnedSimulator, optimiser: torch.optim.Optimizer, best: dict | None,
+              train_cfg: dict, cfg: dict, device: torch.device) -> _Tuner:
+        """Begin the phase: remember the one-step end (in ``state``), load the one-step best weights, and start a
+        fresh optimiser (the one-step phase's kind, at ``cfg['lr']``) and moving average."""
+        if best is None:
+            raise ValueError("train.finetune: the one-step epochs left no validated weights to fine-tune")
+        onestep = json.loads(json.dumps({k: v for k, v in state.items() if k != "finetune"}))
+        state["finetune"] = {"start_epoch": state["epoch"], "start_step": state["step"], "onestep": onestep}
+        state["bad_epochs"] = 0
+        simulator.load_state_dict({k: v.to(device) for k, v in best.items()})
+        log.info("fine-tuning (train.finetune): %d epochs of rollouts of %s frames, %d sims per step, lr %g, from "
+                 "the one-step best (epoch %d, valid %.5g)", cfg["epochs"], cfg["frames"] or "all",
+                 cfg["batch_size"], cfg["lr"], state["best_epoch"], state["best_mse"])
+        average = ({k: v.detach().clone() for k, v in simulator.state_dict().items()}
+                   if cfg["ema_decay"] is not None else None)
+        tuned = make_optimiser(simulator.parameters(), {**train_cfg, "lr": cfg["lr"]})
+        return cls(tuned, cfg, average, state["step"], best)
+
+    @classmethod
+    def resumed(cls, saved: dict, simulator: LearnedSimulator, train_cfg: dict, cfg: dict,
+                device: torch.device) -> _Tuner:
+        """The phase of an interrupted run, from its last.pt ``saved``."""
+        tuned = make_optimiser(simulator.parameters(), {**train_cfg, "lr": cfg["lr"]})
+        tuned.load_state_dict(saved["finetune_optimiser"])
+        average = saved.get("finetune_average")
+        average = None if average is None else {k: v.to(device) for k, v in average.items()}
+        return cls(tuned, cfg, average, int(saved["json"]["state"]["finetune"]["start_step"]), saved["onestep_best"])
+
+    def payload(self) -> dict:
+        """What last.pt keeps of the phase."""
+        return {"finetune_optimiser": self.optimiser.state_dict(), "finetune_average": self.average,
+                "onestep_best": self.onestep_best}
+
+    def loss(self, simulator: LearnedSimulator, sims: list[Sim], frames: int | None, generator: torch.Generator,
+             precision: str) -> torch.Tensor:
+        with devices.autocast(simulator.lower.device, precision):
+            return rollout_loss(simulator, sims, frames, generator)
+
+    def step(self, loss: torch.Tensor, simulator: LearnedSimulator, state: dict) -> None:
+        """One optimiser step on ``loss``: the gradient clipped to ``max_grad_norm``, then the moving average."""
+        for group in self.optimiser.param_groups:
+            group["lr"] = self.lr
+        self.optimiser.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(simulator.parameters(), float(self.cfg["max_grad_norm"]))
+        self.optimiser.step()
+        if self.average is not None:
+            ema_update(self.average, simulator, float(self.cfg["ema_decay"]), state["step"] - self.start_step)
+
+    def validator(self, validator: LearnedSimulator, simulator: LearnedSimulator) -> LearnedSimulator:
+        """What a fine-tuning epoch validates: the moving average (loaded into ``validator``), or the weights."""
+        return simulator if self.average is None else validator
+
+
+def _one_step_end(saved: dict, finished: bool) -> tuple[dict, dict | None]:
+    """A saved run's state and best weights at the end of its one-step epochs (its fine-tuning phase undone)."""
+    state = saved["json"]["state"]
+    if "finetune" in state:
+        return {**state["finetune"]["onestep"], "finished": finished}, saved["onestep_best"]
+    return {**state, "finished": finished}, saved.get("best_model")
 
 
 def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, valid_sims: list[Sim], patience: int,

@@ -516,3 +516,81 @@ def test_a_bundled_model_is_trained_on_the_next_b_frames(tiny_dataset):
     torch.testing.assert_close(
         train.batch_loss(simulator, [sim], one_frame_before, 0.0, torch.Generator(), pushforward=1.0),
         train.batch_loss(simulator, [sim], one_frame_before, 0.0, torch.Generator()))
+
+
+FINETUNE = {"epochs": 2, "lr": 1e-4, "batch_size": 1, "frames": None, "max_grad_norm": 1.0, "ema_decay": 0.5}
+
+
+def _finetuned(tiny, **changes):
+    return {**tiny, "train": {**tiny["train"], "epochs": 2, "patience": 2, "ema_decay": 0.9,
+                              "finetune": {**FINETUNE, **changes}}}
+
+
+def test_finetuning_follows_the_one_step_epochs_from_their_best_weights(tiny_dataset, tmp_path):
+    """Two one-step epochs, then two fine-tuning epochs of one rollout per step (two train sims: two steps each):
+    history.csv says which is which; the first fine-tuning step starts from the one-step best weights; best.pt is
+    the best validated epoch over both phases; the fine-tuning loss is the normalised rollout MSE."""
+    tiny = _finetuned(tiny_dataset)
+    plain = {**tiny, "train": {k: v for k, v in tiny["train"].items() if k != "finetune"}}
+    run(plain, tmp_path / "plain")
+    history = pd.read_csv(tmp_path / "plain" / "history.csv")
+    one_step_steps = int(history["step"].iloc[-1])
+    state = run(tiny, tmp_path / "tuned", max_steps=one_step_steps + 1)     # stopped after one fine-tuning step
+    assert state["finetune"]["start_epoch"] == 2 and state["step"] == state["finetune"]["start_step"] + 1
+    one_step = checkpoint.load(tmp_path / "plain" / "best.pt")
+    last = checkpoint.load(tmp_path / "tuned" / "last.pt")
+    assert all(torch.equal(one_step["model"][k], last["onestep_best"][k]) for k in one_step["model"])
+    moved = [k for k in one_step["model"] if not torch.equal(one_step["model"][k], last["model"][k])]
+    assert moved                                                      # one fine-tuning step from those weights
+    run(tiny, tmp_path / "tuned")
+    tuned = pd.read_csv(tmp_path / "tuned" / "history.csv")
+    assert list(tuned["phase"]) == ["onestep", "onestep", "finetune", "finetune"]
+    pd.testing.assert_frame_equal(tuned.iloc[:2].drop(columns=["seconds", "phase"]), history.drop(columns="seconds"))
+    n = one_step_steps
+    assert list(tuned["step"]) == [n // 2, n, n + 2, n + 4] and (tuned["lr"].iloc[2:] == FINETUNE["lr"]).all()
+    best = checkpoint.load(tmp_path / "tuned" / "best.pt")["json"]
+    assert best["valid_rollout_mse"] == pytest.approx(tuned["valid_rollout_mse"].min())
+
+
+def test_a_finetuning_run_resumes_exactly(tiny_dataset, tmp_path):
+    _resumes_exactly(_finetuned(tiny_dataset), tmp_path, max_steps=13, which="best.pt")    # in fine-tuning
+    last = checkpoint.load(tmp_path / "parts" / "last.pt")
+    assert {"finetune_optimiser", "finetune_average", "onestep_best"} <= set(last)
+
+
+def test_a_finished_run_is_continued_into_a_new_finetuning_not_retrained(tiny_dataset, tmp_path):
+    """Adding train.finetune to a finished run, or changing it afterwards, gives what a run with that fine-tuning
+    from the start gives; removing it ends the run where its one-step epochs ended."""
+    tiny = _finetuned(tiny_dataset)
+    plain = {**tiny, "train": {k: v for k, v in tiny["train"].items() if k != "finetune"}}
+    other = _finetuned(tiny_dataset, lr=3e-4)
+    run(tiny, tmp_path / "whole")
+    run(plain, tmp_path / "added")
+    one_step_steps = int(pd.read_csv(tmp_path / "added" / "history.csv")["step"].iloc[-1])
+    state = run(tiny, tmp_path / "added")
+    assert state["step"] == one_step_steps + 4                       # the one-step steps were not repeated
+    run(other, tmp_path / "changed")
+    run(tiny, tmp_path / "changed")
+    for folder in ("added", "changed"):
+        a = pd.read_csv(tmp_path / "whole" / "history.csv").drop(columns="seconds")
+        b = pd.read_csv(tmp_path / folder / "history.csv").drop(columns="seconds")
+        pd.testing.assert_frame_equal(a, b)
+        wa = checkpoint.load(tmp_path / "whole" / "last.pt")["model"]
+        wb = checkpoint.load(tmp_path / folder / "last.pt")["model"]
+        assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    run(tiny, tmp_path / "removed", max_steps=one_step_steps + 3)
+    state = run(plain, tmp_path / "removed")
+    assert state["finished"] and state["epoch"] == 2
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "removed" / "history.csv").drop(columns="seconds"),
+                                  pd.read_csv(tmp_path / "added" / "history.csv").iloc[:2].drop(
+                                      columns=["seconds", "phase"]))
+
+
+def test_bad_finetune_settings_are_refused_by_key():
+    assert train.check_finetune(None) is None and train.check_finetune(FINETUNE) == FINETUNE
+    for key, bad in (("epochs", 0), ("lr", -1.0), ("batch_size", 1.5), ("frames", 0), ("max_grad_norm", 0),
+                     ("ema_decay", 1.0), ("epochs", True)):
+        with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
+            train.check_finetune({**FINETUNE, key: bad})
+    with pytest.raises(ValueError, match="allowed null or a mapping of exactly epochs, lr"):
+        train.check_finetune({"epochs": 2})
