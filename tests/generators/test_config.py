@@ -209,3 +209,23 @@ def test_a_contender_set_to_null_is_left_out_and_a_removed_main_is_refused():
     assert {"reference", "dt_2pct", "dt_10pct"} <= set(perf["dem"]) and "graphdem" in perf["surrogate"]
     with pytest.raises(config.ConfigError, match=r"'slide.performance.main' = 'graphdem' is not a surrogate contender"):
         config.load({"slide": {"performance": {"surrogate": {"graphdem": None}}}})
+
+
+def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable_by_key():
+    """Both public benchmarks fine-tune on rollouts at the default scale (12 epochs on Slide-SameR, 8 on
+    Slide-Small); the ci and paper scales and every scene train one-step only; a partial override keeps the
+    preset's other keys, null turns it off, and a bad value is refused by key."""
+    defaults = config.load()
+    assert defaults["slide_samer"]["train"]["finetune"]["epochs"] == 12
+    assert defaults["slide_small"]["train"]["finetune"]["epochs"] == 8
+    assert all(defaults[name]["train"]["finetune"]["lr"] == 1e-5 for name in ("slide_samer", "slide_small"))
+    assert not any("finetune" in section["train"] for name, section in defaults.items()
+                   if name not in ("slide_samer", "slide_small") and isinstance(section, dict)
+                   and isinstance(section.get("train"), dict))
+    for scale in ("ci", "paper"):
+        assert "finetune" not in config.load({"scale": scale})["slide_samer"]["train"]
+    partial = config.load({"slide_small": {"train": {"finetune": {"epochs": 3}}}})["slide_small"]["train"]["finetune"]
+    assert partial == {**defaults["slide_small"]["train"]["finetune"], "epochs": 3}
+    assert config.load({"slide_small": {"train": {"finetune": None}}})["slide_small"]["train"]["finetune"] is None
+    with pytest.raises(config.ConfigError, match=r"slide_samer\.train\.finetune"):
+        config.load({"slide_samer": {"train": {"finetune": {"lr": -1.0}}}})
