@@ -23,10 +23,12 @@ Files in the output folder:
 
 With ``train.finetune`` set (optional; absent: none), the ``epochs`` of one-step training are followed by
 ``finetune.epochs`` epochs of rollout fine-tuning (:mod:`surrogate.rollout_loss`): from the best validated
-weights of the one-step epochs, a fresh optimiser (Adam, or AdamW with the same ``weight_decay``) at the constant
-rate ``finetune.lr`` minimises the rollout MSE of ``finetune.batch_size`` train sims per step, the gradient clipped
-to the norm ``finetune.max_grad_norm`` and backpropagated through the rollout; with ``finetune.ema_decay`` its
-weights' moving average is what is validated. Validation and the best checkpoint run on across both phases (if
+weights of the one-step epochs, a fresh optimiser (Adam, or AdamW with the same ``weight_decay``) at the rate
+``finetune.lr`` (constant; or, with the optional ``warmup`` and ``lr_final``, ramped up linearly over the phase's
+first ``warmup`` steps and then decayed exponentially to ``lr_final`` at its last: :func:`finetune_rate`)
+minimises the rollout MSE of ``finetune.batch_size`` train sims per step, the gradient clipped to the norm
+``finetune.max_grad_norm`` and backpropagated through the rollout; with ``finetune.ema_decay`` its weights' moving
+average is what is validated. Validation and the best checkpoint run on across both phases (if
 no fine-tuning epoch beats the one-step best, best.pt stays the one-step model); history.csv gets a ``phase``
 column (``onestep``, ``finetune``) and a fine-tuning epoch's ``train_loss`` is its mean rollout loss. A finished
 (or interrupted) run whose settings differ only in ``finetune`` is continued, not retrained: its fine-tuning
@@ -74,8 +76,10 @@ HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
 # the columns a neighbour cap adds to history.csv (sums over the epoch's training graphs)
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
-# train.finetune's keys (docs/surrogate.md, Rollout fine-tuning); ema_decay may be null
+# train.finetune's keys (docs/surrogate.md, Rollout fine-tuning); ema_decay may be null. The optional ones set the
+# phase's learning-rate schedule (absent: a constant lr)
 FINETUNE_KEYS = ("epochs", "lr", "batch_size", "frames", "max_grad_norm", "ema_decay")
+FINETUNE_OPTIONAL = ("warmup", "lr_final")
 
 
 def log_cap(cap: int, stats: dict) -> None:
@@ -108,6 +112,20 @@ def learning_rate(train_cfg: dict, step: int, total_steps: int) -> float:
     cycle = total_steps / int(train_cfg.get("lr_cycles", 1))        # steps per cycle
     position = step % cycle if step < total_steps else cycle        # past the planned steps: the final rate
     return lr * (float(final) / lr) ** min(position / max(cycle, 1), 1.0)
+
+
+def finetune_rate(cfg: dict, step: int, total_steps: int) -> float:
+    """The fine-tuning phase's learning rate at its ``step`` (0-based) of ``total_steps``: ``lr`` (constant), or
+    with ``warmup`` = W (optional, absent: 0) ``lr (step + 1) / W`` over the first W steps, and with ``lr_final``
+    (optional, absent or null: none) an exponential decay from ``lr`` after the warm-up to ``lr_final`` at the last
+    step, ``lr (lr_final / lr)^((step - W) / (total_steps - W - 1))``."""
+    lr, warmup, final = float(cfg["lr"]), int(cfg.get("warmup") or 0), cfg.get("lr_final")
+    if step < warmup:
+        return lr * (step + 1) / warmup
+    if final is None:
+        return lr
+    span = max(total_steps - warmup - 1, 1)
+    return lr * (float(final) / lr) ** min((step - warmup) / span, 1.0)
 
 
 def snapshot_epochs(train_cfg: dict) -> list[int]:
@@ -361,18 +379,23 @@ def check_finetune(cfg) -> dict | None:
     """``train.finetune`` as given (None: no fine-tuning), or a ValueError naming the key and what is allowed."""
     if cfg is None:
         return None
-    if not isinstance(cfg, dict) or set(cfg) != set(FINETUNE_KEYS):
+    if (not isinstance(cfg, dict) or not set(FINETUNE_KEYS) <= set(cfg)
+            or not set(cfg) <= set(FINETUNE_KEYS) | set(FINETUNE_OPTIONAL)):
         got = sorted(cfg) if isinstance(cfg, dict) else cfg
-        raise ValueError(f"train.finetune = {got!r}: allowed null or a mapping of exactly {', '.join(FINETUNE_KEYS)}")
+        raise ValueError(f"train.finetune = {got!r}: allowed null or a mapping of {', '.join(FINETUNE_KEYS)}, "
+                         f"optionally with {', '.join(FINETUNE_OPTIONAL)}")
     rules = {"epochs": lambda v: isinstance(v, int) and v >= 1, "batch_size": lambda v: isinstance(v, int) and v >= 1,
              "lr": lambda v: isinstance(v, int | float) and v > 0, "max_grad_norm": lambda v: isinstance(
                  v, int | float) and v > 0, "frames": lambda v: v is None or (isinstance(v, int) and v >= 1),
-             "ema_decay": lambda v: v is None or (isinstance(v, int | float) and 0 <= v < 1)}
+             "ema_decay": lambda v: v is None or (isinstance(v, int | float) and 0 <= v < 1),
+             "warmup": lambda v: isinstance(v, int) and v >= 0,
+             "lr_final": lambda v: v is None or (isinstance(v, int | float) and v > 0)}
     for key, ok in rules.items():
-        if isinstance(cfg[key], bool) or not ok(cfg[key]):
+        if key in cfg and (isinstance(cfg[key], bool) or not ok(cfg[key])):
             allowed = {"epochs": "an integer >= 1", "batch_size": "an integer >= 1", "lr": "a number > 0",
                        "max_grad_norm": "a number > 0", "frames": "null (the whole sim) or an integer >= 1",
-                       "ema_decay": "null or a number in [0, 1)"}[key]
+                       "ema_decay": "null or a number in [0, 1)", "warmup": "an integer >= 0 (steps)",
+                       "lr_final": "null (no decay) or a number > 0"}[key]
             raise ValueError(f"train.finetune.{key} = {cfg[key]!r}: allowed {allowed}")
     return cfg
 
@@ -528,7 +551,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                 average = {k: v.to(device) for k, v in saved["average_model"].items()}
             state = saved["json"]["state"]
             if "finetune" in state:
-                tuner = _Tuner.resumed(saved, simulator, train_cfg, finetune, device)
+                tuner = _Tuner.resumed(saved, simulator, train_cfg, finetune, device, len(train_sims))
             log.info("resuming from %s at epoch %d, batch %d, step %d", last, state["epoch"], state["batch"],
                      state["step"])
             planned = state["total_steps"] // n_batches          # the schedule fixed when the run started
@@ -580,7 +603,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         epoch = state["epoch"]
         if epoch >= epochs:                            # the fine-tuning phase (train.finetune)
             if tuner is None:
-                tuner = _Tuner.start(state, simulator, optimiser, best_weights, train_cfg, finetune, device)
+                tuner = _Tuner.start(state, simulator, optimiser, best_weights, train_cfg, finetune, device,
+                                     len(train_sims))
             order = torch.randperm(len(train_sims), generator=_generator(seed, epoch)).tolist()
             size = int(finetune["batch_size"])
             batches = [[train_sims[i] for i in order[b:b + size]] for b in range(0, len(order), size)]
@@ -679,46 +703,50 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
 
 
 class _Tuner:
-    """The rollout fine-tuning phase (``train.finetune``): its optimiser at the constant rate ``lr``, the gradient
-    clip, the moving average of its weights (None without ``ema_decay``) and where the phase started."""
+    """The rollout fine-tuning phase (``train.finetune``): its optimiser at the rate of :func:`finetune_rate`, the
+    gradient clip, the moving average of its weights (None without ``ema_decay``) and where the phase started."""
 
     def __init__(self, optimiser: torch.optim.Optimizer, cfg: dict, average: dict | None, start_step: int,
-                 onestep_best: dict):
+                 onestep_best: dict, n_train: int):
         self.optimiser, self.cfg, self.average, self.start_step = optimiser, cfg, average, start_step
         self.onestep_best = onestep_best           # the one-step phase's best weights, to redo the phase from
-
-    @property
-    def lr(self) -> float:
-        return float(self.cfg["lr"])
+        self.total_steps = int(cfg["epochs"]) * math.ceil(n_train / int(cfg["batch_size"]))
+        self.lr = finetune_rate(cfg, 0, self.total_steps)     # the rate of the latest step (history's lr column)
 
     @classmethod
     def start(cls, state: dict, simulator: LearnedSimulator, optimiser: torch.optim.Optimizer, best: dict | None,
-              train_cfg: dict, cfg: dict, device: torch.device) -> _Tuner:
-        """Begin the phase: remember the one-step end (in ``state``), load the one-step best weights, and start a
-        fresh optimiser (the one-step phase's kind, at ``cfg['lr']``) and moving average."""
+              train_cfg: dict, cfg: dict, device: torch.device, n_train: int) -> _Tuner:
+        """Begin the phase (``n_train`` train sims): remember the one-step end (in ``state``), load the one-step
+        best weights, and start a fresh optimiser (the one-step phase's kind, at ``cfg['lr']``) and moving average."""
         if best is None:
             raise ValueError("train.finetune: the one-step epochs left no validated weights to fine-tune")
         onestep = json.loads(json.dumps({k: v for k, v in state.items() if k != "finetune"}))
         state["finetune"] = {"start_epoch": state["epoch"], "start_step": state["step"], "onestep": onestep}
         state["bad_epochs"] = 0
         simulator.load_state_dict({k: v.to(device) for k, v in best.items()})
-        log.info("fine-tuning (train.finetune): %d epochs of rollouts of %s frames, %d sims per step, lr %g, from "
+        schedule = (f", warm-up over {cfg['warmup']} steps" if cfg.get("warmup") else "") + (
+            f", decaying to {cfg['lr_final']:g}" if cfg.get("lr_final") is not None else "")
+        log.info("fine-tuning (train.finetune): %d epochs of rollouts of %s frames, %d sims per step, lr %g%s, from "
                  "the one-step best (epoch %d, valid %.5g)", cfg["epochs"], cfg["frames"] or "all",
-                 cfg["batch_size"], cfg["lr"], state["best_epoch"], state["best_mse"])
+                 cfg["batch_size"], cfg["lr"], schedule, state["best_epoch"], state["best_mse"])
         average = ({k: v.detach().clone() for k, v in simulator.state_dict().items()}
                    if cfg["ema_decay"] is not None else None)
         tuned = make_optimiser(simulator.parameters(), {**train_cfg, "lr": cfg["lr"]})
-        return cls(tuned, cfg, average, state["step"], best)
+        return cls(tuned, cfg, average, state["step"], best, n_train)
 
     @classmethod
     def resumed(cls, saved: dict, simulator: LearnedSimulator, train_cfg: dict, cfg: dict,
-                device: torch.device) -> _Tuner:
-        """The phase of an interrupted run, from its last.pt ``saved``."""
+                device: torch.device, n_train: int) -> _Tuner:
+        """The phase of an interrupted run, from its last.pt ``saved`` (``n_train`` train sims)."""
         tuned = make_optimiser(simulator.parameters(), {**train_cfg, "lr": cfg["lr"]})
         tuned.load_state_dict(saved["finetune_optimiser"])
         average = saved.get("finetune_average")
         average = None if average is None else {k: v.to(device) for k, v in average.items()}
-        return cls(tuned, cfg, average, int(saved["json"]["state"]["finetune"]["start_step"]), saved["onestep_best"])
+        tuner = cls(tuned, cfg, average, int(saved["json"]["state"]["finetune"]["start_step"]),
+                    saved["onestep_best"], n_train)
+        tuner.lr = finetune_rate(cfg, max(int(saved["json"]["state"]["step"]) - tuner.start_step - 1, 0),
+                                 tuner.total_steps)
+        return tuner
 
     def payload(self) -> dict:
         """What last.pt keeps of the phase."""
@@ -731,7 +759,9 @@ class _Tuner:
             return rollout_loss(simulator, sims, frames, generator)
 
     def step(self, loss: torch.Tensor, simulator: LearnedSimulator, state: dict) -> None:
-        """One optimiser step on ``loss``: the gradient clipped to ``max_grad_norm``, then the moving average."""
+        """One optimiser step on ``loss`` at the phase's rate for the step: the gradient clipped to ``max_grad_norm``,
+        then the moving average."""
+        self.lr = finetune_rate(self.cfg, state["step"] - self.start_step, self.total_steps)
         for group in self.optimiser.param_groups:
             group["lr"] = self.lr
         self.optimiser.zero_grad(set_to_none=True)

@@ -229,3 +229,10 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
     assert config.load({"slide_small": {"train": {"finetune": None}}})["slide_small"]["train"]["finetune"] is None
     with pytest.raises(config.ConfigError, match=r"slide_samer\.train\.finetune"):
         config.load({"slide_samer": {"train": {"finetune": {"lr": -1.0}}}})
+    scheduled = config.load({"slide_small": {"train": {"finetune": {"warmup": 175, "lr_final": 1.0e-6}}}})
+    assert scheduled["slide_small"]["train"]["finetune"] == {**defaults["slide_small"]["train"]["finetune"],
+                                                             "warmup": 175, "lr_final": 1.0e-6}
+    assert not any(key in defaults[name]["train"]["finetune"] for key in ("warmup", "lr_final")
+                   for name in ("slide_samer", "slide_small"))          # absent: a constant rate
+    with pytest.raises(config.ConfigError, match=r"slide_small\.train\.finetune"):
+        config.load({"slide_small": {"train": {"finetune": {"warmup": -1}}}})

@@ -592,5 +592,37 @@ def test_bad_finetune_settings_are_refused_by_key():
                      ("ema_decay", 1.0), ("epochs", True)):
         with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
             train.check_finetune({**FINETUNE, key: bad})
-    with pytest.raises(ValueError, match="allowed null or a mapping of exactly epochs, lr"):
+    for key, bad in (("warmup", -1), ("warmup", 2.5), ("lr_final", 0.0), ("lr_final", True)):
+        with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
+            train.check_finetune({**FINETUNE, key: bad})
+    with pytest.raises(ValueError, match="allowed null or a mapping of epochs, lr.*optionally with warmup, lr_final"):
         train.check_finetune({"epochs": 2})
+    with pytest.raises(ValueError, match=r"train.finetune = \[.*'lr_decay'.*\]: allowed"):
+        train.check_finetune({**FINETUNE, "lr_decay": 0.5})
+    scheduled = {**FINETUNE, "warmup": 3, "lr_final": None}
+    assert train.check_finetune(scheduled) == scheduled
+
+
+def test_the_finetuning_rate_warms_up_linearly_then_decays_exponentially():
+    """Hand-computed: lr (s + 1) / W over the first W steps, then lr (lr_final / lr)^((s - W) / (S - W - 1)),
+    reaching lr_final at the last of the S steps; without the keys the rate is constant."""
+    cfg = {**FINETUNE, "lr": 1e-4}
+    assert [train.finetune_rate(cfg, s, 10) for s in (0, 5, 9)] == [1e-4] * 3
+    warm = {**cfg, "warmup": 4}
+    assert [train.finetune_rate(warm, s, 10) for s in range(6)] == pytest.approx([2.5e-5, 5e-5, 7.5e-5, 1e-4,
+                                                                                 1e-4, 1e-4])
+    both = {**warm, "lr_final": 1e-6}                 # 10 steps: 4 of warm-up, then 1e-4 -> 1e-6 over steps 4..9
+    rates = [train.finetune_rate(both, s, 10) for s in range(10)]
+    assert rates[3] == pytest.approx(1e-4) and rates[4] == pytest.approx(1e-4) and rates[9] == pytest.approx(1e-6)
+    assert rates[6] == pytest.approx(1e-4 * 0.01 ** 0.4)             # (6 - 4) / (10 - 4 - 1)
+    assert train.finetune_rate({**cfg, "lr_final": 1e-5}, 0, 10) == pytest.approx(1e-4)
+
+
+def test_a_scheduled_finetuning_records_its_rates_and_resumes_exactly(tiny_dataset, tmp_path):
+    """With a warm-up and a decay, history.csv's lr of a fine-tuning epoch is the rate of its last step (two train
+    sims, one per step: 4 steps over the 2 epochs), and an interrupted run resumes on the same schedule."""
+    tiny = _finetuned(tiny_dataset, warmup=1, lr_final=1e-5)
+    _resumes_exactly(tiny, tmp_path, max_steps=13, which="best.pt")
+    history = pd.read_csv(tmp_path / "whole" / "history.csv")
+    expected = [train.finetune_rate(tiny["train"]["finetune"], s, 4) for s in (1, 3)]
+    assert list(history["lr"].iloc[2:]) == pytest.approx(expected) and expected[-1] == pytest.approx(1e-5)
