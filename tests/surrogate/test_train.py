@@ -588,11 +588,11 @@ def test_a_finished_run_is_continued_into_a_new_finetuning_not_retrained(tiny_da
 
 def test_bad_finetune_settings_are_refused_by_key():
     assert train.check_finetune(None) is None and train.check_finetune(FINETUNE) == FINETUNE
-    for key, bad in (("epochs", 0), ("lr", -1.0), ("batch_size", 1.5), ("frames", 0), ("max_grad_norm", 0),
+    for key, bad in (("epochs", 0), ("lr", -1.0), ("lr", 2.0), ("batch_size", 1.5), ("frames", 0), ("max_grad_norm", 0),
                      ("ema_decay", 1.0), ("epochs", True)):
         with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
             train.check_finetune({**FINETUNE, key: bad})
-    for key, bad in (("warmup", -1), ("warmup", 2.5), ("lr_final", 0.0), ("lr_final", True)):
+    for key, bad in (("warmup", -1), ("warmup", 2.5), ("lr_final", 0.0), ("lr_final", 1.5), ("lr_final", True)):
         with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
             train.check_finetune({**FINETUNE, key: bad})
     with pytest.raises(ValueError, match="allowed null or a mapping of epochs, lr.*optionally with warmup, lr_final"):
