@@ -239,5 +239,5 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
     with pytest.raises(config.ConfigError, match=r"slide_small\.train\.finetune"):
         config.load({"slide_small": {"train": {"finetune": {"warmup": -1}}}})
     for key, bad in (("lr", 2.0), ("lr_final", 1.5)):       # the bounds train.check_finetune also holds
-        with pytest.raises(config.ConfigError, match=rf"slide_small\.train\.finetune"):
+        with pytest.raises(config.ConfigError, match=r"slide_small\.train\.finetune"):
             config.load({"slide_small": {"train": {"finetune": {key: bad}}}})
