@@ -384,18 +384,19 @@ def check_finetune(cfg) -> dict | None:
         got = sorted(cfg) if isinstance(cfg, dict) else cfg
         raise ValueError(f"train.finetune = {got!r}: allowed null or a mapping of {', '.join(FINETUNE_KEYS)}, "
                          f"optionally with {', '.join(FINETUNE_OPTIONAL)}")
-    rules = {"epochs": lambda v: isinstance(v, int) and v >= 1, "batch_size": lambda v: isinstance(v, int) and v >= 1,
-             "lr": lambda v: isinstance(v, int | float) and 0 < v <= 1, "max_grad_norm": lambda v: isinstance(
-                 v, int | float) and v > 0, "frames": lambda v: v is None or (isinstance(v, int) and v >= 1),
-             "ema_decay": lambda v: v is None or (isinstance(v, int | float) and 0 <= v < 1),
-             "warmup": lambda v: isinstance(v, int) and v >= 0,
-             "lr_final": lambda v: v is None or (isinstance(v, int | float) and 0 < v <= 1)}
-    for key, ok in rules.items():
+    number = (int, float)
+    rules = {"epochs": (lambda v: isinstance(v, int) and v >= 1, "an integer >= 1"),
+             "batch_size": (lambda v: isinstance(v, int) and v >= 1, "an integer >= 1"),
+             "lr": (lambda v: isinstance(v, number) and 0 < v <= 1, "a number in (0, 1]"),
+             "max_grad_norm": (lambda v: isinstance(v, number) and v > 0, "a number > 0"),
+             "frames": (lambda v: v is None or (isinstance(v, int) and v >= 1),
+                        "null (the whole sim) or an integer >= 1"),
+             "ema_decay": (lambda v: v is None or (isinstance(v, number) and 0 <= v < 1), "null or a number in [0, 1)"),
+             "warmup": (lambda v: isinstance(v, int) and v >= 0, "an integer >= 0 (steps)"),
+             "lr_final": (lambda v: v is None or (isinstance(v, number) and 0 < v <= 1),
+                          "null (no decay) or a number in (0, 1]")}
+    for key, (ok, allowed) in rules.items():
         if key in cfg and (isinstance(cfg[key], bool) or not ok(cfg[key])):
-            allowed = {"epochs": "an integer >= 1", "batch_size": "an integer >= 1", "lr": "a number in (0, 1]",
-                       "max_grad_norm": "a number > 0", "frames": "null (the whole sim) or an integer >= 1",
-                       "ema_decay": "null or a number in [0, 1)", "warmup": "an integer >= 0 (steps)",
-                       "lr_final": "null (no decay) or a number in (0, 1]"}[key]
             raise ValueError(f"train.finetune.{key} = {cfg[key]!r}: allowed {allowed}")
     return cfg
 
