@@ -70,6 +70,15 @@ def _flatten(node: dict, root: dict) -> dict:
     return merged
 
 
+def _object_form(node: dict, root: dict) -> dict:
+    """``node``, or where it is a choice of forms (``oneOf``: null or a mapping, say) its one mapping form."""
+    if "properties" in node:
+        return node
+    forms = [_flatten(form, root) for form in node.get("oneOf", node.get("anyOf", []))]
+    mappings = [form for form in forms if "properties" in form]
+    return mappings[0] if len(mappings) == 1 else node
+
+
 def _schema_at(schema: dict, path: list[Any], root: dict) -> dict:
     node = schema
     for part in path:
@@ -77,8 +86,25 @@ def _schema_at(schema: dict, path: list[Any], root: dict) -> dict:
         if isinstance(part, int):
             node = node.get("items", {})
         else:
-            node = node.get("properties", {}).get(part, {})
+            node = _object_form(node, root).get("properties", {}).get(part, {})
     return _flatten(node, root)
+
+
+def _leaves(error: jsonschema.ValidationError) -> list[jsonschema.ValidationError]:
+    """The errors to report for ``error``: where it is a choice of forms (``oneOf``, ``anyOf``) and the value has
+    the type of exactly one form, the errors inside that form (``finetune.lr = 2.0``, not the whole mapping
+    against every form); otherwise ``error`` itself."""
+    if error.validator not in ("oneOf", "anyOf") or not error.context:
+        return [error]
+    forms: dict[int, list[jsonschema.ValidationError]] = {}
+    for sub in error.context:
+        forms.setdefault(sub.relative_schema_path[0], []).append(sub)
+    mistyped = {i for i, subs in forms.items()
+                if any(s.validator in ("type", "const", "enum") and not s.relative_path for s in subs)}
+    fitting = [i for i in forms if i not in mistyped]
+    if len(fitting) != 1:
+        return [error]
+    return [leaf for sub in forms[fitting[0]] for leaf in _leaves(sub)]
 
 
 def _resolve(ref: str, root: dict) -> dict:
@@ -88,19 +114,23 @@ def _resolve(ref: str, root: dict) -> dict:
     return node
 
 
-def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = False) -> str:
-    """One line naming the key and what is allowed; empty for an unevaluatedProperties error that only echoes
-    a failure of a known key below it (that failure has its own line), unless ``always``."""
+def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = False,
+              prefix: tuple[str, ...] = ()) -> str:
+    """One line naming the key (``prefix`` is where the validated part sits in the config) and what is allowed;
+    empty for an unevaluatedProperties error that only echoes a failure of a known key below it (that failure
+    has its own line), unless ``always``."""
     path = list(error.absolute_path)
-    where = ".".join(str(p) for p in path) or "<top level>"
+    named = [*prefix, *path]
+    where = ".".join(str(p) for p in named) or "<top level>"
     if error.validator in ("additionalProperties", "unevaluatedProperties"):
-        allowed = sorted(_schema_at(schema, path, schema).get("properties", {}))
+        node = _object_form(_schema_at(schema, path, schema), schema)
+        allowed = sorted(node.get("properties", {}))
         extra = sorted(set(error.instance) - set(allowed))
         if not extra and not always:
             return ""
         return (
-            f"unknown config key {', '.join(repr(where + '.' + k if path else k) for k in extra)}; "
-            f"allowed keys{' under ' + where if path else ''}: {', '.join(allowed)}"
+            f"unknown config key {', '.join(repr(where + '.' + k if named else k) for k in extra)}; "
+            f"allowed keys{' under ' + where if named else ''}: {', '.join(allowed)}"
         )
     if error.validator == "required":
         return f"config key {where!r} is missing {error.message.split(' is a required')[0]}"
@@ -114,9 +144,24 @@ def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = Fa
             items = _resolve(items["$ref"], schema)
         allowed["items"] = {k: v for k, v in items.items() if k != "description"}
     if "oneOf" in node:                 # a choice of forms, e.g. a number or `auto`: name each
-        allowed = " or ".join(str(option.get("const", option)) for option in node["oneOf"])
+        allowed = " or ".join(_form(option, schema) for option in node["oneOf"])
         return f"config key {where!r} = {error.instance!r} is not allowed; allowed: {allowed}"
     return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
+
+
+def _form(option: dict, root: dict) -> str:
+    """One form of a choice, as a line of an error message: the constant, the keys of a mapping, or the rule."""
+    option = _flatten(option, root)
+    if "const" in option:
+        return str(option["const"])
+    if option == {"type": "null"}:
+        return "null"
+    if "properties" in option:
+        required = list(option.get("required", []))
+        optional = [key for key in option["properties"] if key not in required]
+        return (f"a mapping of {', '.join(required)}" + (f" (optionally {', '.join(optional)})" if optional else "")
+                + " (each key's own rule in the schema)")
+    return str(option)
 
 
 BENCHMARKS = ("slide_samer", "slide_small")
@@ -171,14 +216,28 @@ def _check_finite(node: Any, where: str = "") -> None:
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
     _check_finite(config)
-    root = schema()
-    validator = jsonschema.Draft202012Validator(root)
-    errors = sorted(validator.iter_errors(config), key=lambda e: [str(p) for p in e.absolute_path])
-    lines = [line for line in (_describe(e, root) for e in errors) if line]
-    if errors:
-        raise ConfigError("invalid configuration:\n  " + "\n  ".join(lines or [_describe(errors[0], root, True)]))
+    _raise_errors(schema(), config)
     _check_semantics(config)
     return config
+
+
+def validate_part(value: Any, ref: str, where: str) -> Any:
+    """Validate one part of a config (``value``, found at the key path ``where``, e.g. ``train.finetune``)
+    against the schema node ``ref`` (``#/$defs/train/properties/finetune``), for the callers that receive a
+    part without the whole config; raise ConfigError naming the key, as :func:`validate` does."""
+    _check_finite(value, where)
+    _raise_errors({"$defs": schema()["$defs"], "$ref": ref}, value, tuple(where.split(".")))
+    return value
+
+
+def _raise_errors(root: dict, value: Any, prefix: tuple[str, ...] = ()) -> None:
+    validator = jsonschema.Draft202012Validator(root)
+    errors = sorted((leaf for e in validator.iter_errors(value) for leaf in _leaves(e)),
+                    key=lambda e: [str(p) for p in e.absolute_path])
+    lines = [line for line in (_describe(e, root, prefix=prefix) for e in errors) if line]
+    if errors:
+        first = _describe(errors[0], root, True, prefix)
+        raise ConfigError("invalid configuration:\n  " + "\n  ".join(dict.fromkeys(lines or [first])))
 
 
 def _check_semantics(config: dict) -> None:

@@ -49,6 +49,7 @@ import pandas as pd
 import torch
 from tqdm import tqdm
 
+from generators import config
 from generators.atomic import atomic_path
 from surrogate import checkpoint, derived, devices, distributed, runtime
 from surrogate.errors import TrainingDiverged
@@ -78,8 +79,6 @@ _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
 # train.finetune's keys (docs/surrogate.md, Rollout fine-tuning); ema_decay may be null. The optional ones set the
 # phase's learning-rate schedule (absent: a constant lr)
-FINETUNE_KEYS = ("epochs", "lr", "batch_size", "frames", "max_grad_norm", "ema_decay")
-FINETUNE_OPTIONAL = ("warmup", "lr_final")
 
 
 def log_cap(cap: int, stats: dict) -> None:
@@ -376,29 +375,10 @@ def validation_mse(simulator: LearnedSimulator, sims: list[Sim]) -> float:
 
 
 def check_finetune(cfg) -> dict | None:
-    """``train.finetune`` as given (None: no fine-tuning), or a ValueError naming the key and what is allowed."""
-    if cfg is None:
-        return None
-    if (not isinstance(cfg, dict) or not set(FINETUNE_KEYS) <= set(cfg)
-            or not set(cfg) <= set(FINETUNE_KEYS) | set(FINETUNE_OPTIONAL)):
-        got = sorted(cfg) if isinstance(cfg, dict) else cfg
-        raise ValueError(f"train.finetune = {got!r}: allowed null or a mapping of {', '.join(FINETUNE_KEYS)}, "
-                         f"optionally with {', '.join(FINETUNE_OPTIONAL)}")
-    number = (int, float)
-    rules = {"epochs": (lambda v: isinstance(v, int) and v >= 1, "an integer >= 1"),
-             "batch_size": (lambda v: isinstance(v, int) and v >= 1, "an integer >= 1"),
-             "lr": (lambda v: isinstance(v, number) and 0 < v <= 1, "a number in (0, 1]"),
-             "max_grad_norm": (lambda v: isinstance(v, number) and v > 0, "a number > 0"),
-             "frames": (lambda v: v is None or (isinstance(v, int) and v >= 1),
-                        "null (the whole sim) or an integer >= 1"),
-             "ema_decay": (lambda v: v is None or (isinstance(v, number) and 0 <= v < 1), "null or a number in [0, 1)"),
-             "warmup": (lambda v: isinstance(v, int) and v >= 0, "an integer >= 0 (steps)"),
-             "lr_final": (lambda v: v is None or (isinstance(v, number) and 0 < v <= 1),
-                          "null (no decay) or a number in (0, 1]")}
-    for key, (ok, allowed) in rules.items():
-        if key in cfg and (isinstance(cfg[key], bool) or not ok(cfg[key])):
-            raise ValueError(f"train.finetune.{key} = {cfg[key]!r}: allowed {allowed}")
-    return cfg
+    """``train.finetune`` as given (None: no fine-tuning), checked against the config schema's rule for it (the
+    workflow's config is validated whole; this covers callers that pass a train section directly), or a
+    ConfigError (a ValueError) naming the key and what is allowed."""
+    return config.validate_part(cfg, "#/$defs/train/properties/finetune", "train.finetune")
 
 
 def _settings(model_cfg: dict, train_cfg: dict, stats: dict, train_ids: list[str]) -> dict:

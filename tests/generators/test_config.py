@@ -238,6 +238,10 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
                    for name in ("slide_samer", "slide_small"))          # absent: constant after the warm-up
     with pytest.raises(config.ConfigError, match=r"slide_small\.train\.finetune"):
         config.load({"slide_small": {"train": {"finetune": {"warmup": -1}}}})
-    for key, bad in (("lr", 2.0), ("lr_final", 1.5)):       # the bounds train.check_finetune also holds
-        with pytest.raises(config.ConfigError, match=r"slide_small\.train\.finetune"):
+    for key, bad in (("lr", 2.0), ("lr_final", 1.5)):       # the key inside the mapping form is named, not the form
+        with pytest.raises(config.ConfigError, match=rf"'slide_small\.train\.finetune\.{key}' = {bad} is not "
+                                                     rf"allowed: {bad} is greater than the maximum of 1"):
             config.load({"slide_small": {"train": {"finetune": {key: bad}}}})
+    with pytest.raises(config.ConfigError, match=r"'slide_small\.train\.finetune' = 'on' is not allowed; allowed: "
+                                                 r"null or a mapping of epochs, lr, batch_size"):
+        config.load({"slide_small": {"train": {"finetune": "on"}}})

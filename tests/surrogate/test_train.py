@@ -586,19 +586,26 @@ def test_a_finished_run_is_continued_into_a_new_finetuning_not_retrained(tiny_da
                                       columns=["seconds", "phase"]))
 
 
-def test_bad_finetune_settings_are_refused_by_key():
+def test_bad_finetune_settings_are_refused_by_key_with_the_schemas_rule():
     assert train.check_finetune(None) is None and train.check_finetune(FINETUNE) == FINETUNE
-    for key, bad in (("epochs", 0), ("lr", -1.0), ("lr", 2.0), ("batch_size", 1.5), ("frames", 0), ("max_grad_norm", 0),
-                     ("ema_decay", 1.0), ("epochs", True)):
-        with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
+    for key, bad, allowed in (("epochs", 0, "minimum"), ("lr", -1.0, "exclusiveMinimum"), ("lr", 2.0, "maximum"),
+                              ("batch_size", 1.5, "integer"), ("batch_size", 5000, "maximum"), ("frames", 0, "minimum"),
+                              ("max_grad_norm", 0, "exclusiveMinimum"), ("ema_decay", 1.0, "exclusiveMaximum"),
+                              ("epochs", True, "integer"), ("warmup", -1, "minimum"), ("warmup", 2.5, "integer"),
+                              ("lr_final", 0.0, "exclusiveMinimum"), ("lr_final", 1.5, "maximum"),
+                              ("lr_final", True, "number")):
+        with pytest.raises(ValueError, match=rf"'train.finetune.{key}' = {bad!r} is not allowed.*{allowed}"):
             train.check_finetune({**FINETUNE, key: bad})
-    for key, bad in (("warmup", -1), ("warmup", 2.5), ("lr_final", 0.0), ("lr_final", 1.5), ("lr_final", True)):
-        with pytest.raises(ValueError, match=rf"train.finetune.{key} = {bad!r}: allowed"):
-            train.check_finetune({**FINETUNE, key: bad})
-    with pytest.raises(ValueError, match="allowed null or a mapping of epochs, lr.*optionally with warmup, lr_final"):
+    with pytest.raises(ValueError, match=r"'train.finetune.lr' = nan is not allowed: every number must be finite"):
+        train.check_finetune({**FINETUNE, "lr": float("nan")})
+    with pytest.raises(ValueError, match="'train.finetune' is missing 'lr'"):
         train.check_finetune({"epochs": 2})
-    with pytest.raises(ValueError, match=r"train.finetune = \[.*'lr_decay'.*\]: allowed"):
+    with pytest.raises(ValueError, match=r"unknown config key 'train.finetune.lr_decay'; allowed keys under "
+                                         r"train.finetune: batch_size, .*warmup"):
         train.check_finetune({**FINETUNE, "lr_decay": 0.5})
+    with pytest.raises(ValueError, match=r"'train.finetune' = 3 is not allowed; allowed: null or a mapping of "
+                                         r"epochs, lr"):
+        train.check_finetune(3)
     scheduled = {**FINETUNE, "warmup": 3, "lr_final": None}
     assert train.check_finetune(scheduled) == scheduled
 
