@@ -77,8 +77,6 @@ HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "
 _RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
 # the columns a neighbour cap adds to history.csv (sums over the epoch's training graphs)
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
-# train.finetune's keys (docs/surrogate.md, Rollout fine-tuning); ema_decay may be null. The optional ones set the
-# phase's learning-rate schedule (absent: a constant lr)
 
 
 def log_cap(cap: int, stats: dict) -> None:
