@@ -213,8 +213,9 @@ def test_a_contender_set_to_null_is_left_out_and_a_removed_main_is_refused():
 
 def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable_by_key():
     """Both public benchmarks fine-tune on rollouts at the default scale (Slide-SameR 16 epochs of 14-frame
-    rollouts from random starts, Slide-Small 16 epochs of whole 18-frame rollouts); the ci and paper scales and every scene train one-step only; a partial override keeps the
-    preset's other keys, null turns it off, and a bad value is refused by key."""
+    rollouts from random starts, Slide-Small 16 epochs of whole 18-frame rollouts); the ci and paper scales and
+    every scene train one-step only; a partial override keeps the preset's other keys, null turns it off, and a
+    bad value is refused by key."""
     defaults = config.load()
     assert defaults["slide_samer"]["train"]["finetune"]["epochs"] == 16
     assert defaults["slide_samer"]["train"]["finetune"]["frames"] == 14
