@@ -212,15 +212,15 @@ def test_a_contender_set_to_null_is_left_out_and_a_removed_main_is_refused():
 
 
 def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable_by_key():
-    """Both public benchmarks fine-tune on rollouts at the default scale (Slide-SameR 16 epochs of 14-frame
-    rollouts from random starts, Slide-Small 16 epochs of whole 18-frame rollouts); the ci and paper scales and
+    """Both public benchmarks fine-tune on 14-frame rollouts from random starts at the default scale (Slide-SameR
+    16 epochs, Slide-Small 20, about the cost of its former whole-rollout epochs); the ci and paper scales and
     every scene train one-step only; a partial override keeps the preset's other keys, null turns it off, and a
     bad value is refused by key."""
     defaults = config.load()
     assert defaults["slide_samer"]["train"]["finetune"]["epochs"] == 16
     assert defaults["slide_samer"]["train"]["finetune"]["frames"] == 14
-    assert defaults["slide_small"]["train"]["finetune"]["epochs"] == 16
-    assert defaults["slide_small"]["train"]["finetune"]["frames"] is None
+    assert defaults["slide_small"]["train"]["finetune"]["epochs"] == 20
+    assert defaults["slide_small"]["train"]["finetune"]["frames"] == 14
     for name in ("slide_samer", "slide_small"):             # 2e-5 after a warm-up over one epoch's 175 steps
         tuned = defaults[name]["train"]["finetune"]
         assert tuned["lr"] == 2e-5 and tuned["warmup"] == 175
