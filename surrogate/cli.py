@@ -253,6 +253,7 @@ def cmd_card(args) -> None:
 
     from generators.atomic import atomic_path
     from surrogate import card, devices
+    from surrogate import tables as tables_csv
     counts = {"--metrics": len(args.metrics), "--steps": len(args.steps), "--histories": len(args.histories)}
     if set(counts.values()) != {len(args.seeds)}:
         raise SystemExit(f"graphdem card: give one file per seed ({len(args.seeds)} seeds: {args.seeds}); got "
@@ -273,12 +274,12 @@ def cmd_card(args) -> None:
             trainings[seed] = card.training(epochs, None if card.records_hardware(epochs) else fallback())
         except ValueError as exc:
             raise ValueError(f"{history}: {exc}") from None
-        tables[seed] = (pd.read_csv(metrics), pd.read_csv(steps), trainings[seed])
+        tables[seed] = (tables_csv.read_csv(metrics), tables_csv.read_csv(steps), trainings[seed])
     if (args.ensemble_metrics is None) != (args.ensemble_steps is None):
         raise SystemExit("graphdem card: give both --ensemble-metrics and --ensemble-steps (the seed ensemble's "
                          "evaluation), or neither")
-    ensemble = None if args.ensemble_metrics is None else (pd.read_csv(args.ensemble_metrics),
-                                                           pd.read_csv(args.ensemble_steps))
+    ensemble = None if args.ensemble_metrics is None else (tables_csv.read_csv(args.ensemble_metrics),
+                                                           tables_csv.read_csv(args.ensemble_steps))
     stats = json.loads(Path(args.stats).read_text())
     table, split, note = card.card(tables, stats, args.article_json, args.benchmark, ensemble)
     text = card.markdown(table, args.benchmark, split, note, card.mean_diameter(stats), trainings, args.device)
@@ -392,7 +393,8 @@ def cmd_performance_report(args) -> None:
 
     from generators.atomic import atomic_path
     from surrogate import performance, plots
-    contenders = pd.concat([pd.read_csv(p) for p in args.tables], ignore_index=True)
+    from surrogate import tables as tables_csv
+    contenders = pd.concat([tables_csv.read_csv(p) for p in args.tables], ignore_index=True)
     from generators import record
     settling = [record.read(p).run.wall_time for p in args.packings or []]
     table = performance.report(contenders, args.main, args.reference, float(np.mean(settling)) if settling else None)

@@ -26,6 +26,7 @@ from surrogate.runtime import Runtime
 from surrogate.runtime import apply as apply_runtime
 from surrogate.samples import load_sim
 from surrogate.stored import read_ensemble, read_rollout
+from surrogate.tables import read_csv
 
 log = logging.getLogger("graphdem.evaluate")
 
@@ -343,7 +344,7 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
 def combine(paths: list[Path], union: bool = False) -> pd.DataFrame:
     """Tables of the same layout (e.g. one metrics.csv per protocol) stacked in the given order;
     with ``union``, tables of different columns (blank where a table has no such column)."""
-    tables = [pd.read_csv(p) for p in paths]
+    tables = [read_csv(p) for p in paths]
     if not tables:
         raise ValueError("nothing to combine: no tables given")
     if union:

@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from generators.atomic import atomic_path
+from surrogate.tables import read_csv
 
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
@@ -207,7 +208,7 @@ def to_html(table: pd.DataFrame, title: str) -> str:
 
 def write(metrics_csv: str | Path, out: str | Path, title: str) -> Path:
     """Render ``metrics_csv`` (read back as written, so the table shows exactly the CSV) to ``out``."""
-    table = pd.read_csv(metrics_csv, keep_default_na=True, dtype={"acc_frames": str})   # "5" is a tau list, not 5.0
+    table = read_csv(metrics_csv, keep_default_na=True, dtype={"acc_frames": str})   # "5" is a tau list, not 5.0
     out = Path(out)
     with atomic_path(out) as tmp:
         tmp.write_text(to_html(table, title), encoding="utf-8")

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from surrogate.tables import read_csv
+
 VALUES = ("acc_percent", "acc_pooled_percent", "mse", "mean_prediction")
 KEYS = ("scene", "method", "metric", "history")
 
@@ -59,4 +61,4 @@ def read(paths: list[Path], seeds: list[int]) -> dict[int, pd.DataFrame]:
         raise ValueError(f"{len(paths)} metrics tables for {len(seeds)} seeds; give one table per seed")
     if len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds {seeds} repeat a seed")
-    return {int(s): pd.read_csv(p) for s, p in zip(seeds, paths, strict=True)}
+    return {int(s): read_csv(p) for s, p in zip(seeds, paths, strict=True)}
