@@ -1,10 +1,11 @@
 """Reading the pipeline's CSV tables back without changing what they say.
 
 A checkpoint's short SHA-256 is 12 hex digits, and some digests are also numbers to a CSV parser:
-``15792618e549`` reads as a float (infinity) and ``001234567890`` as an integer without its zeros. Every
-table that names its model (``metrics.csv``, ``per_step.csv``, the property and stress tables) is read back
-through :func:`read_csv`, which keeps the provenance columns as text, so a table combined from others, a card
-or a plot carries the digest exactly as the evaluation wrote it.
+``15792618e549`` reads as a float (infinity) and ``001234567890`` as an integer without its zeros. Where the
+pipeline reads a table that names its model back (``metrics.csv`` and ``metrics_per_step.csv`` in
+:func:`surrogate.evaluate.combine`, :func:`surrogate.seeds.read`, ``metrics.html``, the benchmark card and the
+performance report), it goes through :func:`read_csv`, which keeps the provenance columns as text, so what it
+writes next carries the digest exactly as the evaluation wrote it.
 """
 
 from __future__ import annotations
