@@ -213,9 +213,9 @@ def test_a_contender_set_to_null_is_left_out_and_a_removed_main_is_refused():
 
 def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable_by_key():
     """Both public benchmarks fine-tune on 14-frame rollouts from random starts at the default scale (Slide-SameR
-    16 epochs at 8e-5 with four sims per step, Slide-Small 20, about the cost of its former whole-rollout epochs,
-    at 4e-5 with two sims per step); the ci and paper scales and
-    every scene train one-step only; a partial override keeps the preset's other keys, null turns it off, and a
+    16 epochs at 8e-5 with four sims per step and a weight average of 0.995, Slide-Small 20, about the cost of its
+    former whole-rollout epochs, at 4e-5 with two sims per step and 0.99); the ci and paper scales and every scene
+    train one-step only; a partial override keeps the preset's other keys, null turns it off, and a
     bad value is refused by key."""
     defaults = config.load()
     assert defaults["slide_samer"]["train"]["finetune"]["epochs"] == 16
@@ -225,6 +225,7 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
     samer, small = (defaults[name]["train"]["finetune"] for name in ("slide_samer", "slide_small"))
     assert samer["lr"] == 8e-5 and samer["batch_size"] == 4 and samer["warmup"] == 175
     assert small["lr"] == 4e-5 and small["batch_size"] == 2 and small["warmup"] == 175   # twice the updates and rate
+    assert samer["ema_decay"] == 0.995 and small["ema_decay"] == 0.99     # measured on Slide-SameR only
     assert not any("finetune" in section["train"] for name, section in defaults.items()
                    if name not in ("slide_samer", "slide_small") and isinstance(section, dict)
                    and isinstance(section.get("train"), dict))
