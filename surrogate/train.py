@@ -74,7 +74,7 @@ log = logging.getLogger("graphdem.train")
 HISTORY_COLUMNS = ("epoch", "step", "train_loss", "valid_rollout_mse", "best", "seconds", "lr",
                    "threads", "processes", "device", "device_name")
 # Settings that may change between an interrupted run and its continuation.
-_RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every")
+_RESUMABLE_CHANGES = ("epochs", "patience", "checkpoint_every", "validate_last")
 # the columns a neighbour cap adds to history.csv (sums over the epoch's training graphs)
 CAP_HISTORY = ["capped_receivers", "dropped_edges", "edges_before_cap"]
 
@@ -387,6 +387,25 @@ def _settings(model_cfg: dict, train_cfg: dict, stats: dict, train_ids: list[str
     return {"model": model_cfg, "train": fixed, "stats": stats, "train_sims": train_ids}
 
 
+def _tuning(finetune: dict | None) -> dict | None:
+    """The fine-tuning settings that shape its weights: all but ``validate_last``, which only skips validations."""
+    return None if finetune is None else {k: v for k, v in finetune.items() if k != "validate_last"}
+
+
+def validated_epochs(train_cfg: dict) -> tuple[int, int | None]:
+    """The first one-step epoch and the first fine-tuning epoch (both 1-based, each counted within its phase; None
+    without ``train.finetune``) whose weights are validated: the last ``train.validate_last`` and the last
+    ``finetune.validate_last`` epochs of each phase (optional; absent: every epoch; more than the phase has: every
+    epoch). An epoch before them is trained but not rolled out on the valid sims, so it never becomes the best and
+    never counts towards early stopping; the phase's last epoch is always validated."""
+    first = max(1, int(train_cfg["epochs"]) - int(train_cfg.get("validate_last") or train_cfg["epochs"]) + 1)
+    finetune = train_cfg.get("finetune")
+    if finetune is None:
+        return first, None
+    epochs = int(finetune["epochs"])
+    return first, max(1, epochs - int(finetune.get("validate_last") or epochs) + 1)
+
+
 def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, out_dir: Path,
           threads: int = 1, fresh: bool = False, max_steps: int | None = None, progress: bool = True,
           device: str | torch.device = "auto") -> dict:
@@ -410,6 +429,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
            device: torch.device) -> dict:
     torch.set_num_threads(max(1, int(threads) // world.local_size))
     snapshots = snapshot_epochs(train_cfg)             # a bad cycle count fails before any data is read
+    first_validated, first_tuned = validated_epochs(train_cfg)    # validate_last: the epochs to validate
     progress = progress and world.main
     out_dir.mkdir(parents=True, exist_ok=True)
     stats = json.loads(stats_path.read_text())
@@ -496,8 +516,8 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
             log.warning("ignoring %s: %s", last, exc)
             saved = None
         saved_state = {} if saved is None else saved["json"].get("state", {})
-        same_finetune = saved is not None and saved["json"].get("train", {}).get("finetune") == json.loads(
-            json.dumps(finetune))
+        same_finetune = saved is not None and _tuning(saved["json"].get("train", {}).get("finetune")) == _tuning(
+            json.loads(json.dumps(finetune)))
         if saved is None:
             pass
         elif saved["json"].get("settings") != json.loads(json.dumps(settings)):
@@ -655,10 +675,13 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
         if world.main:
             if batches is not None:                    # fine-tuning: its own average, every epoch to the end
                 best_weights = _end_epoch(state, tuner.validator(validator, simulator), tuner.average, valid_sims,
-                                          total_epochs, total_epochs, tuner.lr, clock, hardware) or best_weights
+                                          total_epochs, total_epochs, tuner.lr, clock, hardware,
+                                          validate=epoch + 1 - epochs >= first_tuned) or best_weights
             else:
                 best_weights = _end_epoch(state, validator, average, valid_sims, patience, epochs,
-                                          optimiser.param_groups[0]["lr"], clock, hardware) or best_weights
+                                          optimiser.param_groups[0]["lr"], clock, hardware,
+                                          validate=epoch + 1 >= first_validated or epoch + 1 in snapshots
+                                          ) or best_weights
                 if state["finished"] and finetune is not None:     # the one-step phase ended: fine-tuning next
                     state.update(finished=False, epoch=epochs)
             if epoch + 1 in snapshots and batches is None:         # a cycle ended: keep its validated weights
@@ -764,28 +787,36 @@ def _one_step_end(saved: dict, finished: bool) -> tuple[dict, dict | None]:
 
 
 def _end_epoch(state: dict, validator: LearnedSimulator, average: dict | None, valid_sims: list[Sim], patience: int,
-               epochs: int, lr: float, clock: float, hardware: list) -> dict[str, torch.Tensor] | None:
+               epochs: int, lr: float, clock: float, hardware: list, validate: bool = True
+               ) -> dict[str, torch.Tensor] | None:
     """Validate the epoch's weights (their average, with ``ema_decay``), record the epoch in ``state`` (with the
     ``hardware`` it ran on: threads, processes, device, device name) and close it; the weights to keep as the best,
-    on the CPU, where they improved, else None."""
+    on the CPU, where they improved, else None. With ``validate`` False (an epoch before its phase's last
+    ``validate_last``) the epoch is recorded without a validation error (NaN), is not the best and does not count
+    towards ``patience``."""
     epoch = state["epoch"]
     train_loss = state["loss_sum"] / max(state["loss_count"], 1)
-    if average is not None:
-        validator.load_state_dict(average)
-    valid = validation_mse(validator, valid_sims)
-    # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
-    improved = valid < state["best_mse"] or state["best_epoch"] == -1
-    best = None
-    if improved:
-        state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
-        state["best_step"] = state["step"]
-        best = {k: v.detach().to("cpu", copy=True) for k, v in validator.state_dict().items()}
-    else:
-        state["bad_epochs"] += 1
+    best, improved, valid = None, False, math.nan
+    if validate:
+        if average is not None:
+            validator.load_state_dict(average)
+        valid = validation_mse(validator, valid_sims)
+        # the first epoch is the best so far even when its validation rollouts all blew up (+inf)
+        improved = valid < state["best_mse"] or state["best_epoch"] == -1
+        if improved:
+            state["best_mse"], state["best_epoch"], state["bad_epochs"] = valid, epoch + 1, 0
+            state["best_step"] = state["step"]
+            best = {k: v.detach().to("cpu", copy=True) for k, v in validator.state_dict().items()}
+        else:
+            state["bad_epochs"] += 1
     state["seconds"] += time.perf_counter() - clock
     row = [epoch + 1, state["step"], train_loss, valid, improved, round(state["seconds"], 2), lr, *hardware]
-    log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
-             " (best)" if improved else "")
+    if validate:
+        log.info("epoch %d: train loss %.5g, valid rollout MSE %.5g m^2%s", epoch + 1, train_loss, valid,
+                 " (best)" if improved else "")
+    else:
+        log.info("epoch %d: train loss %.5g, not validated (validate_last: only the phase's last "
+                 "epochs are)", epoch + 1, train_loss)
     if "capped_sum" in state:                      # a neighbour cap: what it cut from the epoch's training graphs
         capped, dropped, edges = state["capped_sum"], state["dropped_sum"], state["edges_sum"]
         row += [capped, dropped, edges]

@@ -226,6 +226,11 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
     assert samer["lr"] == 8e-5 and samer["batch_size"] == 4 and samer["warmup"] == 175
     assert small["lr"] == 4e-5 and small["batch_size"] == 2 and small["warmup"] == 175   # twice the updates and rate
     assert samer["ema_decay"] == 0.995 and small["ema_decay"] == 0.99     # measured on Slide-SameR only
+    # only the epochs that held every best are validated: Slide-SameR's last 6 one-step epochs, both sets' last 10
+    # fine-tuning epochs; Slide-Small validates every one-step epoch (a seed's best came at its 8th of 12)
+    assert defaults["slide_samer"]["train"]["validate_last"] == 6 and "validate_last" not in defaults[
+        "slide_small"]["train"]
+    assert samer["validate_last"] == 10 and small["validate_last"] == 10
     assert not any("finetune" in section["train"] for name, section in defaults.items()
                    if name not in ("slide_samer", "slide_small") and isinstance(section, dict)
                    and isinstance(section.get("train"), dict))

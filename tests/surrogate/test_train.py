@@ -633,3 +633,47 @@ def test_a_scheduled_finetuning_records_its_rates_and_resumes_exactly(tiny_datas
     history = pd.read_csv(tmp_path / "whole" / "history.csv")
     expected = [train.finetune_rate(tiny["train"]["finetune"], s, 4) for s in (1, 3)]
     assert list(history["lr"].iloc[2:]) == pytest.approx(expected) and expected[-1] == pytest.approx(1e-5)
+
+
+def test_the_epochs_to_validate_are_each_phases_last_ones():
+    base = {"epochs": 18, "finetune": {**FINETUNE, "epochs": 16}}
+    assert train.validated_epochs(base) == (1, 1)                                     # absent: every epoch
+    assert train.validated_epochs({**base, "validate_last": 6,
+                                   "finetune": {**base["finetune"], "validate_last": 10}}) == (13, 7)
+    assert train.validated_epochs({"epochs": 3, "validate_last": 5}) == (1, None)   # more than the phase: all
+    assert train.validated_epochs({"epochs": 3, "validate_last": None}) == (1, None)
+    with pytest.raises(ValueError, match=r"'train.finetune.validate_last' = 0 is not allowed.*minimum"):
+        train.check_finetune({**FINETUNE, "validate_last": 0})
+
+
+def test_validating_only_the_last_epochs_trains_the_same_weights_and_skips_the_rest(tiny_dataset, tmp_path):
+    """Three one-step and three fine-tuning epochs, validated every epoch or only the last two one-step and the
+    last fine-tuning epoch: the training losses and weights are the same to the bit, the skipped epochs have no
+    validation error and are never the best, the others score as before, and an interrupted run continues when
+    only validate_last changed."""
+    every = {**tiny_dataset, "train": {**tiny_dataset["train"], "epochs": 3, "patience": 3, "ema_decay": 0.9,
+                                       "finetune": {**FINETUNE, "epochs": 3}}}
+    last = {**every, "train": {**every["train"], "validate_last": 2,
+                               "finetune": {**every["train"]["finetune"], "validate_last": 1}}}
+    run(every, tmp_path / "every")
+    a = pd.read_csv(tmp_path / "every" / "history.csv")
+    one_step_best = int(a.loc[a["phase"] == "onestep", "valid_rollout_mse"].idxmin()) + 1
+    assert one_step_best >= 2, "the tiny run's one-step best must be a validated epoch for the weights to agree"
+    steps = int(a["step"].iloc[2])                                  # stopped in the first fine-tuning epoch
+    run(last, tmp_path / "last", max_steps=steps + 1)
+    run(every, tmp_path / "last")                                   # continued (validate_last only skips work)
+    state = run(last, tmp_path / "last2")
+    b = pd.read_csv(tmp_path / "last2" / "history.csv")
+    pd.testing.assert_series_equal(a["train_loss"], b["train_loss"])
+    skipped = [1, 4, 5]                                             # epochs before each phase's validated ones
+    assert b.loc[b["epoch"].isin(skipped), "valid_rollout_mse"].isna().all()
+    assert not b.loc[b["epoch"].isin(skipped), "best"].any()
+    kept = ~a["epoch"].isin(skipped)
+    pd.testing.assert_series_equal(a.loc[kept, "valid_rollout_mse"], b.loc[kept, "valid_rollout_mse"])
+    assert state["best_epoch"] == int(b["valid_rollout_mse"].idxmin()) + 1 and state["best_epoch"] not in skipped
+    for folder in ("last", "last2"):
+        wa = checkpoint.load(tmp_path / "every" / "last.pt")["model"]
+        wb = checkpoint.load(tmp_path / folder / "last.pt")["model"]
+        assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    resumed = pd.read_csv(tmp_path / "last" / "history.csv")
+    assert resumed["valid_rollout_mse"].notna().sum() == 6 - 1      # resumed in epoch 4: validated from there on
