@@ -6,7 +6,8 @@ Files in the output folder:
 
 * ``best.pt``: weights with the lowest validation rollout MSE, with config and dataset stats
   (with ``ema_decay`` set, the exponential moving average of the weights is what is validated and kept);
-* ``history.csv``: per epoch the mean training loss and the validation rollout MSE, the training wall time
+* ``history.csv``: per epoch the mean training loss and the validation rollout MSE (empty for an epoch that
+  ``validate_last`` leaves out: :func:`validated_epochs`), the training wall time
   so far (``seconds``: training and validation, summed over the runs of a resumed job) and where the epoch
   ran: ``threads`` (torch CPU threads per process), ``processes`` (1, or torchrun's), ``device`` (cpu or
   cuda:N) and ``device_name`` (the GPU's or the CPU's model; :func:`surrogate.devices.name`); with the
@@ -673,7 +674,7 @@ def _train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict,
                     save_last()
         bar.close()
         if world.main:
-            if batches is not None:                    # fine-tuning: its own average, every epoch to the end
+            if batches is not None:                    # fine-tuning: its own average, to the end (validate_last)
                 best_weights = _end_epoch(state, tuner.validator(validator, simulator), tuner.average, valid_sims,
                                           total_epochs, total_epochs, tuner.lr, clock, hardware,
                                           validate=epoch + 1 - epochs >= first_tuned) or best_weights
