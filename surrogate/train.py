@@ -399,12 +399,12 @@ def validated_epochs(train_cfg: dict) -> tuple[int, int | None]:
     ``finetune.validate_last`` epochs of each phase (optional; absent: every epoch; more than the phase has: every
     epoch). An epoch before them is trained but not rolled out on the valid sims, so it never becomes the best and
     never counts towards early stopping; the phase's last epoch is always validated."""
-    first = max(1, int(train_cfg["epochs"]) - int(train_cfg.get("validate_last") or train_cfg["epochs"]) + 1)
+    def first(phase: dict) -> int:
+        epochs = int(phase["epochs"])
+        return max(1, epochs - int(phase.get("validate_last") or epochs) + 1)
+
     finetune = train_cfg.get("finetune")
-    if finetune is None:
-        return first, None
-    epochs = int(finetune["epochs"])
-    return first, max(1, epochs - int(finetune.get("validate_last") or epochs) + 1)
+    return first(train_cfg), None if finetune is None else first(finetune)
 
 
 def train(stats_path: Path, splits_csv: Path, model_cfg: dict, train_cfg: dict, out_dir: Path,
