@@ -118,6 +118,17 @@ class Record:
 
 
 @dataclass(frozen=True)
+class Perturbation:
+    """A displacement of the particles right after frame ``frame`` of a Record schedule is recorded: every
+    particle moves by its row of ``displacement`` [N, D] (m; kinematic particles' rows are zero), and the run
+    goes on from there with the velocities, rotations and contact history it had (a DEM ensemble member,
+    generators/ensemble.py). Frames 0..frame are the unperturbed run's."""
+
+    frame: int
+    displacement: np.ndarray
+
+
+@dataclass(frozen=True)
 class Setup:
     """One DEM run, engine-neutral.
 
@@ -155,6 +166,7 @@ class Setup:
     force_groups: tuple[str, ...] = ()       # groups whose summed contact force each frame reports (Frames), the
     force_samples: int = 1                   # mean over this many equally spaced steps of the frame interval,
                                              # the last at the frame (a divisor of Record.every)
+    perturbation: Perturbation | None = None  # displace the particles after a recorded frame (Record only)
 
     @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -192,3 +204,22 @@ class Frames:
 
 class UnsupportedSetup(ValueError):
     """An engine driver cannot run a feature of a Setup; the message names the feature and the engine."""
+
+
+def checked_perturbation(setup: Setup) -> Perturbation | None:
+    """The Setup's Perturbation, refused by name where no engine can apply it: a frame that is not followed by
+    another of the Record schedule, a displacement of another shape than the particles', or one that moves a
+    kinematic particle."""
+    p = setup.perturbation
+    if p is None:
+        return None
+    frames = setup.schedule.frames if isinstance(setup.schedule, Record) else 0
+    if not 0 <= p.frame < frames - 1:
+        raise UnsupportedSetup(f"{setup.name}: a perturbation after frame {p.frame}; it must come after one of "
+                               f"frames 0..{frames - 2} of a recorded run of {frames} frames")
+    if np.shape(p.displacement) != np.shape(setup.particles.x):
+        raise UnsupportedSetup(f"{setup.name}: a perturbation of shape {np.shape(p.displacement)} for particles of "
+                               f"shape {np.shape(setup.particles.x)}")
+    if np.any(np.asarray(p.displacement)[setup.kinematic]):
+        raise UnsupportedSetup(f"{setup.name}: a perturbation that moves kinematic particles")
+    return p

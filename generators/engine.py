@@ -15,7 +15,7 @@ from types import ModuleType
 import numpy as np
 import pandas as pd
 
-from generators import blowup, dem, record
+from generators import blowup, dem, ensemble, record
 from generators.atomic import atomic_path
 from generators.scene import Scene
 
@@ -80,13 +80,17 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: i
              threads: int = 1) -> record.SimRecord:
     """Run sweep row ``row`` from its settled packing in the row's engine (LAMMPS: on ``ranks`` MPI ranks; YADE:
     on ``threads`` threads); raw output, the engine's own input and log, and run.json in ``out_dir``. A blow-up
-    raises BlowUp naming the sim, frame and cause. A row with ``perturbation`` > 0 starts from the packing
-    perturbed by that many radii (:func:`perturbed`)."""
+    raises BlowUp naming the sim, frame and cause. A DEM ensemble member's row (``perturb_frame``,
+    generators/ensemble.py) runs from the packing as it is and is perturbed after that frame; any other row
+    with ``perturbation`` > 0 starts from the packing perturbed by that many radii (:func:`perturbed`)."""
     out_dir = Path(out_dir)
     packing = read_packing(packing_dir)
-    if row.get("perturbation"):
+    member = ensemble.is_member(row)
+    if row.get("perturbation") and not member:
         packing = perturbed(packing, scene.kinematic_species, float(row["perturbation"]), row["seed"])
     setup = scene.simulate_setup(row, packing)
+    if member:
+        setup = ensemble.member_setup(setup, row)
     runner = driver(row["engine"])
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:
@@ -107,7 +111,8 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: i
             window_steps=schedule.every * (schedule.frames - 1), frame_interval=schedule.every * setup.dt,
             packing=str(packing_dir), box_lower=[float(v) for v in box_lower],
             box_upper=[float(v) for v in box_upper], contact_model=runner.CONTACT_MODEL + _walls(setup),
-            parameters=scene.h5md_parameters(row, setup), properties=scene.properties(row),
+            parameters={**scene.h5md_parameters(row, setup), **(ensemble.parameters(setup, row) if member else {})},
+            properties=scene.properties(row),
             log_scaled_properties=list(scene.log_scaled_properties),
             kinetic_energy=None if frames.kinetic_energy is None else [float(e) for e in frames.kinetic_energy],
             observables={k: [float(v) for v in np.asarray(values, float)]

@@ -28,6 +28,7 @@ DATA = "data.lammps"
 STATIC = "static.dump"
 FRAMES = "frames.dump"
 PACKING = "packing.dump"
+PERTURBATION = "perturbation_{axis}.txt"
 AXES = "xyz"
 
 
@@ -90,7 +91,9 @@ def setup_lines(setup: dem.Setup) -> list[str]:
     kinematic = [s for s in range(setup.n_species) if s in setup.kinematic_species]
     moving = [s for s in range(setup.n_species) if s not in setup.kinematic_species]
     model = contact_model(setup.contact, setup.density, setup.nominal_radius, dim)
-    lines = [f"dimension       {dim}", "units           si", "atom_style      sphere",
+    # a perturbation's per-atom files need LAMMPS' map of atoms by id (a lookup: the dynamics are the same)
+    mapped = ["atom_modify     map array"] if setup.perturbation is not None else []
+    lines = [f"dimension       {dim}", "units           si", "atom_style      sphere", *mapped,
              f"boundary        f f {'p' if dim == 2 else 'f'}", "comm_modify     vel yes", f"read_data       {DATA}",
              f"set             group all {'density/disc' if dim == 2 else 'density'} {fmt(float(setup.density))}"]
     if kinematic:
@@ -259,5 +262,33 @@ def record_deck(setup: dem.Setup) -> str:
         moved = [f"motion{k}" for k in range(len(setup.motions))] + (["platen"] if setup.platen is not None else [])
         lines.append(f"group           recorded union moving {' '.join(moved)}")
     lines += [f"dump            frames {recorded} custom {r.every} {FRAMES} id {coords}",
-              "dump_modify     frames sort id format float %.10g", f"run             {r.every * (r.frames - 1)}"]
+              "dump_modify     frames sort id format float %.10g", *window_lines(setup)]
     return "\n".join(lines) + "\n"
+
+
+def window_lines(setup: dem.Setup) -> list[str]:
+    """The recorded window: one run of every x (frames - 1) steps or, with a Perturbation, a run to its frame,
+    the displacement of the moving particles (`displace_atoms` by the per-atom values of the perturbation files,
+    :func:`write_perturbation`) and a run to the end. The split step is dumped once (LAMMPS writes no snapshot
+    twice at a step) and its thermo row is printed by both runs, the second after the displacement."""
+    r = setup.schedule
+    p = dem.checked_perturbation(setup)
+    if p is None:
+        return [f"run             {r.every * (r.frames - 1)}"]
+    axes = AXES[: setup.dim]
+    moves = " ".join([f"v_perturb_{a}" for a in axes] + ["0"] * (3 - setup.dim))
+    return [f"run             {r.every * p.frame}",
+            *(f"variable        perturb_{a} atomfile {PERTURBATION.format(axis=a)}" for a in axes),
+            f"displace_atoms  moving move {moves} units box",
+            f"run             {r.every * (r.frames - 1 - p.frame)}"]
+
+
+def write_perturbation(workdir, setup: dem.Setup) -> None:
+    """The Perturbation's displacement of each moving particle along each axis, one `atomfile` per axis (atom id
+    and value in m, to 17 digits: read back exactly)."""
+    p = dem.checked_perturbation(setup)
+    ids = np.flatnonzero(~setup.kinematic)
+    for a, axis in enumerate(AXES[: setup.dim]):
+        lines = [f"# graphdem: displacement along {axis} (m) after frame {p.frame}", str(len(ids))]
+        lines += [f"{i + 1} {float(p.displacement[i, a]):.17g}" for i in ids]
+        (workdir / PERTURBATION.format(axis=axis)).write_text("\n".join(lines) + "\n")

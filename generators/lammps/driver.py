@@ -23,12 +23,12 @@ from generators.record import EngineRun
 CONTACT_MODEL = deck.CONTACT_MODEL
 
 
-def _engine_run(run: EngineRun, log: Path) -> EngineRun:
-    """The run with LAMMPS' own loop time of its last run (the recorded window), of the runs before it
-    (the run-up) and its step count."""
+def _engine_run(run: EngineRun, log: Path, window_runs: int = 1) -> EngineRun:
+    """The run with LAMMPS' own loop time of its last ``window_runs`` runs (the recorded window: two where a
+    perturbation splits it), of the runs before them (the run-up) and its step count."""
     loops = io.loop_times(log)
-    return dataclasses.replace(run, window_seconds=loops[-1][0] if loops else None,
-                               runup_seconds=sum(t for t, _ in loops[:-1]) if loops else None,
+    return dataclasses.replace(run, window_seconds=sum(t for t, _ in loops[-window_runs:]) if loops else None,
+                               runup_seconds=sum(t for t, _ in loops[:-window_runs]) if loops else None,
                                steps=sum(n for _, n in loops))
 
 
@@ -73,12 +73,18 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     workdir = Path(workdir)
     schedule = setup.schedule
     deck.write_data(workdir / deck.DATA, setup, f"graphdem {setup.name}")
+    window_runs = 1
+    if dem.checked_perturbation(setup) is not None:
+        deck.write_perturbation(workdir, setup)
+        window_runs = 2
     try:
         run = runner.run(deck.record_deck(setup), workdir, ranks=ranks)
     except runner.LammpsError as exc:
         raise _blowup(setup, exc, schedule.start, schedule.every) from exc
     raw = read_raw(workdir, setup.dt)
-    thermo = io.read_thermo(workdir / "log.lammps").drop_duplicates("Step", keep="last").set_index("Step")
+    # a perturbation's step is in both runs' tables: the first, before the displacement, is the frame's
+    thermo = io.read_thermo(workdir / "log.lammps", runs=window_runs)
+    thermo = thermo.drop_duplicates("Step", keep="first").set_index("Step")
     missing = sorted(set(raw["step"].tolist()) - set(thermo.index.astype(int).tolist()))
     if missing:
         raise io.LammpsOutputError(f"{setup.name}: no thermo output at recorded steps {missing[:3]}")
@@ -93,7 +99,7 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
         group_force[name] = thermo[columns].loc[raw["step"]].to_numpy(float)
     frames = dem.Frames(position=raw["position"], step=raw["step"], time=raw["time"], mass=raw["mass"],
                         radius=raw["radius"], kinetic_energy=kinetic, kinematic_force=force, group_force=group_force)
-    return frames, _engine_run(run, workdir / "log.lammps")
+    return frames, _engine_run(run, workdir / "log.lammps", window_runs)
 
 
 def read_raw(raw_dir: Path, dt: float) -> dict:

@@ -51,8 +51,8 @@ def read_dump(path: Path) -> list[tuple[int, pd.DataFrame]]:
     return frames
 
 
-def read_thermo(log: Path) -> pd.DataFrame:
-    """The last run's thermo table of a LAMMPS log file."""
+def read_thermo(log: Path, runs: int = 1) -> pd.DataFrame:
+    """The thermo tables of the last ``runs`` runs of a LAMMPS log file, one after the other."""
     lines = Path(log).read_text().splitlines()
     tables, current, header = [], None, None
     for line in lines:
@@ -72,8 +72,7 @@ def read_thermo(log: Path) -> pd.DataFrame:
                 current = None
     if not tables:
         return pd.DataFrame()
-    header, rows = tables[-1]
-    return pd.DataFrame(rows, columns=header)
+    return pd.concat([pd.DataFrame(rows, columns=header) for header, rows in tables[-runs:]], ignore_index=True)
 
 
 def loop_times(log: Path) -> list[tuple[float, int]]:

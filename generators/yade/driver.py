@@ -127,8 +127,9 @@ def _force_samples(setup: dem.Setup) -> int:
 
 
 def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
-    """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps (one
-    process: ``ranks`` must be 1; ``threads`` OpenMP threads, YADE's ``-j``)."""
+    """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps, displacing
+    the particles by the Setup's Perturbation right after its frame (one process: ``ranks`` must be 1; ``threads``
+    OpenMP threads, YADE's ``-j``)."""
     _one_process(setup, ranks)
     r = setup.schedule
     motions = [{"mask": setup.group(m.group).tolist(), "velocity": list(m.velocity), "from_record": m.from_record}
@@ -136,6 +137,10 @@ def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
     job = {"mode": "record", **_job(setup), "motions": motions, "start": r.start, "every": r.every,
            "frames": r.frames, "force_groups": {name: setup.group(name).tolist() for name in setup.force_groups},
            "force_samples": _force_samples(setup)}
+    perturbation = dem.checked_perturbation(setup)
+    if perturbation is not None:
+        job["perturbation"] = {"frame": perturbation.frame,
+                               "displacement": np.asarray(perturbation.displacement, float).tolist()}
     if setup.platen is not None:
         pl = setup.platen
         if setup.dim != 3 or not np.all(setup.kinematic[setup.group(pl.group)]):

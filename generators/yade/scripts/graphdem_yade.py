@@ -12,7 +12,9 @@ It imports only yade, numpy and the standard library. Modes (job["mode"]):
   DEM steps) is loaded; after ``start`` steps the positions of every sphere are recorded every
   ``every`` steps, with the moving spheres' kinetic energy, the total contact force on the fixed ones
   and the contact force on each of the ``force_groups`` (averaged over ``force_samples`` equally spaced
-  steps of the frame interval, the last at the frame; frame 0's over the run-up's last interval).
+  steps of the frame interval, the last at the frame; frame 0's over the run-up's last interval); with a
+  ``perturbation``, every sphere is displaced by its row of the displacement right after frame ``frame`` is
+  recorded (a DEM ensemble member).
 
 graphdem starts YADE's launcher without its TCP Python prompt and XML-RPC server (generators/yade/runner.py).
 As a second guard the script shuts down any socket server it finds at its start (counted in its output: 0)
@@ -229,6 +231,15 @@ def force_on(ids, fixed, dim):
     return total[:dim]
 
 
+def perturb(ids, displacement):
+    """Displace each sphere by its row of ``displacement`` (a DEM ensemble member, after a recorded frame): the
+    positions change, the velocities, rotations and contacts go on as they were."""
+    for i, d in zip(ids, displacement, strict=True):
+        if any(d):
+            state = O.bodies[i].state
+            state.pos = tuple(x + dx for x, dx in zip(tuple(state.pos), vector3(d), strict=True))
+
+
 def settle(job, out):
     ids = build(job)
     free = [not f for f in job["fixed"]]
@@ -302,6 +313,8 @@ def record(job, out):
         forces.append(force_on(ids, job["fixed"], job["dim"]))
         for name, value in now.items():
             group_forces[name].append(value)
+        if job.get("perturbation") and f == job["perturbation"]["frame"]:
+            perturb(ids, job["perturbation"]["displacement"])
     np.savez(out, position=np.stack(frames), step=np.array(steps), time=np.array(times),
              **{f"group_force:{name}": np.stack(v) for name, v in group_forces.items()},
              mass=np.array([O.bodies[i].state.mass for i in ids]), kinetic_energy=np.array(energies),
