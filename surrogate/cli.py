@@ -2,8 +2,8 @@
 
 The generators' stages (config, sweep, prepare, simulate, convert, inspect, import-solidgn,
 stability-dem) come from generators/cli.py; this module adds the surrogate's (dataset, train, rollout,
-evaluate, combine, seeds, card, stability-surrogate, property-test, stress-readout, stress-test and the
-performance stage's subcommands) and runs them all.
+evaluate, combine, seeds, card, stability-surrogate, property-test, stress-readout, stress-test, the
+performance stage's subcommands, and tables: the docs' results tables, surrogate/doc_tables/) and runs them all.
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the
 file, sim, frame or config key) when something is wrong.
 """
@@ -194,7 +194,8 @@ def cmd_evaluate(args) -> None:
                                                ensemble_dir=args.ensemble,
                                                threads=args.threads, progress=not args.no_progress, split=split,
                                                split_note=note, runtime=_runtime_config(args),
-                                               allow_other_scene=args.allow_other_scene, device=args.device)
+                                               allow_other_scene=args.allow_other_scene, device=args.device,
+                                               intervals=_intervals(args))
         tables.append(table)
         per_step.append(steps)
         first = first or sims
@@ -444,6 +445,18 @@ def _device_arg(value: str) -> str:
         raise argparse.ArgumentTypeError(f"{value!r}: allowed are {devices.CHOICES}")
     return value
 
+def _intervals(args):
+    """The bootstrap of --intervals-json (the config's ``intervals`` keys), or None: the config's defaults."""
+    from surrogate.metrics.scores import Intervals
+    if args.intervals_json is None:
+        return None
+    want = {"samples", "level", "seed"}
+    if not isinstance(args.intervals_json, dict) or set(args.intervals_json) != want:
+        raise SystemExit(f"graphdem evaluate: --intervals-json {args.intervals_json!r}: an object with exactly the "
+                         f"keys {', '.join(sorted(want))}")
+    return Intervals(**args.intervals_json)
+
+
 def _runtime_config(args, required_by: str | None = None):
     """The Runtime of --runtime-json; None without it, unless the command ``required_by`` needs it."""
     from surrogate import runtime
@@ -563,9 +576,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--table-html", type=Path,
                    help="metrics CSV as an HTML table whose empty cells say n/a or undefined and why (the report's)")
     p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
-    p.add_argument("--ensemble", type=Path,
-                   help="folder of the DEM ensemble: <sim id>.h5 per sim, the sim rerun by its engine from a "
-                        "perturbed state; scored as the method dem_ensemble (the chaos floor)")
+    p.add_argument("--ensemble", type=Path, nargs="+",
+                   help="the DEM ensemble's member folders, <sim id>.h5 per sim in each: the sim rerun by its engine "
+                        "from its own state at the last given frame, perturbed; scored member by member (method "
+                        "dem_ensemble) and as the members' mean (dem_ensemble_mean), and their spread is the unit "
+                        "of every method's error_in_spreads")
+    p.add_argument("--intervals-json", type=json.loads, default=None,
+                   help='the bootstrap of every figure\'s interval, {"samples": N, "level": L, "seed": S} (default: '
+                        "the config's intervals)")
     _body_displacement(p)
     p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
     p.add_argument("--animate", help="sim id to animate (default: the first)")
@@ -753,6 +771,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--substeps-plot", type=Path, help="the speed-up against DEM sub-steps per frame (PNG)")
     p.add_argument("--title", default="run time against error")
     p.set_defaults(func=cmd_performance_report)
+
+    from surrogate import doc_tables
+    doc_tables.add_command(sub)
     return parser
 
 

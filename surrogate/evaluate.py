@@ -8,7 +8,8 @@ from __future__ import annotations
 import json
 import logging
 import subprocess
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,19 +21,24 @@ from generators import h5md
 from generators.atomic import atomic_path
 from surrogate import ensemble, provenance
 from surrogate.baseline import constant_velocity
-from surrogate.metrics import accuracy, curve_accuracy, frame_list, of_scene, plausibility
+from surrogate.metrics import of_scene, plausibility
+from surrogate.metrics.scores import Intervals
+from surrogate.provenance import as_paths
 from surrogate.rollout import rollout, rollout_mse
 from surrogate.runtime import Runtime
 from surrogate.runtime import apply as apply_runtime
 from surrogate.samples import load_sim
 from surrogate.stored import read_ensemble, read_rollout
+from surrogate.summary import summarise
 from surrogate.tables import read_csv
 
 log = logging.getLogger("graphdem.evaluate")
 
-MODEL, BASELINE, ENSEMBLE = "graphdem", "constant_velocity", "dem_ensemble"
+MODEL, BASELINE, ENSEMBLE, ENSEMBLE_MEAN = "graphdem", "constant_velocity", "dem_ensemble", "dem_ensemble_mean"
 MSE = "rollout MSE"
 SECONDS = "seconds per frame"
+# per-step columns that hold values (not provenance): the mean rows of metrics_per_step.csv leave them blank
+STEP_VALUES = ("truth", "prediction", "blown_up", "member", "truth_start", "spread", "diameter")
 # rows of a model with a neighbour cap: per predicted frame, the receivers it capped and the edges it dropped
 CAPPED, DROPPED = "capped receivers per frame", "dropped edges per frame"
 
@@ -50,6 +56,7 @@ class Evaluated:
     seconds_per_frame: float = float("nan")   # Graph-DEM wall time per predicted frame
     capped_per_frame: float = float("nan")    # receivers the neighbour cap capped per predicted frame (NaN: no cap)
     dropped_per_frame: float = float("nan")   # edges the neighbour cap dropped per predicted frame
+    members: list[np.ndarray] = field(default_factory=list)   # the DEM ensemble's members, each [T, N, D]
 
 
 def code_version() -> str:
@@ -120,57 +127,103 @@ def blown_up_from(prediction: np.ndarray, traj: h5md.Trajectory, history: int) -
 
 
 def _per_step(scene: str, method: str, sim: str, metric: str, times: np.ndarray, truth, prediction, k: int,
-              blown: int | None = None):
-    """Rows of one metric; from frame ``blown`` on (a blown-up rollout) the prediction is NaN and flagged."""
+              blown: int | None = None, member: int = 0, start: float = float("nan"), spread=None,
+              diameter: float = float("nan")):
+    """Rows of one metric; from frame ``blown`` on (a blown-up rollout) the prediction is NaN and flagged.
+    ``member``: which DEM ensemble member (0 for any other method); ``start``: the truth at the last given
+    frame; ``spread``: the DEM ensemble members' spread per frame (NaN: no ensemble); ``diameter``: the sim's
+    mean diameter of the moving particles."""
     n = len(prediction)
     frame = np.arange(k, k + n)
     flagged = np.zeros(n, bool) if blown is None else frame >= blown
-    return pd.DataFrame({"scene": scene, "method": method, "sim": sim, "metric": metric,
+    return pd.DataFrame({"scene": scene, "method": method, "sim": sim, "metric": metric, "member": member,
                          "tau": np.arange(1, n + 1), "frame": frame, "time": times[k:k + n],
                          "truth": np.nan if truth is None else truth,
                          "prediction": np.where(flagged, np.nan, np.asarray(prediction, np.float64)),
-                         "blown_up": flagged})
+                         "blown_up": flagged, "truth_start": start,
+                         "spread": np.nan if spread is None else spread, "diameter": diameter})
+
+
+def member_spreads(members: list[np.ndarray], member_values: list[dict[str, np.ndarray]], moving: np.ndarray,
+                   history: int) -> dict[str, np.ndarray]:
+    """The DEM ensemble members' spread per predicted frame: for the rollout MSE the members' positional variance
+    about their mean (m², mean over moving particles of the summed per-axis sample variance), for every scene metric
+    the members' sample standard deviation of it (NaN where fewer than two members define it)."""
+    if len(members) < 2:
+        return {}
+    stack = np.stack([np.asarray(m, np.float64)[history:, moving] for m in members])       # [M, T, n, D]
+    out = {MSE: stack.var(axis=0, ddof=1).sum(axis=-1).mean(axis=-1)}
+    for name in member_values[0]:
+        values = np.stack([v[name][history:] for v in member_values])                       # [M, T]
+        defined = np.isfinite(values).sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out[name] = np.where(defined >= 2, np.nanstd(values, axis=0, ddof=1), np.nan)
+    return out
+
+
+def _runs(predictions: dict[str, np.ndarray], members: list[np.ndarray] | None) -> list[tuple[str, int, np.ndarray]]:
+    """(method, member, positions) of every prediction scored: the given methods, each DEM ensemble member and
+    the members' mean trajectory."""
+    runs = [(method, 0, prediction) for method, prediction in predictions.items()]
+    if members:
+        runs += [(ENSEMBLE, j, member) for j, member in enumerate(members)]
+        runs.append((ENSEMBLE_MEAN, 0, np.mean(np.stack(members), axis=0)))
+    return runs
 
 
 def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[str, np.ndarray], history: int,
-          body_displacement: float | None = None) -> list[pd.DataFrame]:
+          body_displacement: float | None = None, members: list[np.ndarray] | None = None) -> list[pd.DataFrame]:
     """Per-step rows of sim ``sim``: rollout MSE and the scene's metrics of every prediction
-    (method name -> [T, N, D]) over the frames after the first ``history``."""
+    (method name -> [T, N, D]) over the frames after the first ``history``; ``members``, the DEM ensemble's
+    reruns started at the last given frame, are scored one by one (method dem_ensemble, each its member index)
+    and as their mean trajectory (dem_ensemble_mean), and give every row the members' spread."""
     scene = str(traj.parameters.get("scene", "unknown"))
     moving = ~np.asarray(traj.kinematic, bool)
+    diameter = float(2.0 * np.mean(np.asarray(traj.radius, np.float64)[moving])) if moving.any() else float("nan")
     cls = of_scene(scene)
     metrics = cls.for_trajectory(traj, body_displacement) if cls is not None else None
     truth_values = metrics(truth) if metrics else {}
     truth_plausibility = plausibility.of_trajectory(truth, traj) if metrics else {}
+    spreads = member_spreads(members or [], [metrics(m) for m in members] if metrics and members else
+                             [{} for _ in members or []], moving, history)
     rows = []
-    for method, prediction in predictions.items():
+    for method, member, prediction in _runs(predictions, members):
         blown = blown_up_from(prediction, traj, history)
+        common = dict(blown=blown, member=member, diameter=diameter)
         with np.errstate(invalid="ignore", over="ignore"):
             rows.append(_per_step(scene, method, sim, MSE, traj.time, None,
-                                  rollout_mse(prediction, truth, moving, history), history, blown))
+                                  rollout_mse(prediction, truth, moving, history), history,
+                                  spread=spreads.get(MSE), **common))
             if metrics is None:
                 continue
             for name, values in metrics(prediction).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, truth_values[name][history:],
-                                      values[history:], history, blown))
+                                      values[history:], history, start=float(truth_values[name][history - 1]),
+                                      spread=spreads.get(name), **common))
             for name, values in metrics.compare(prediction, truth).items():
-                rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history, blown))
+                rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history, **common))
             for name, values in plausibility.of_trajectory(prediction, traj).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, truth_plausibility[name][history:],
-                                      values[history:], history, blown))
+                                      values[history:], history,
+                                      start=float(truth_plausibility[name][history - 1]), **common))
     return rows
 
 
 def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int, rollouts_dir: Path | None = None,
              body_displacement: float | None = None, frames: list[int] | None = None,
-             ensemble_dir: Path | None = None, threads: int = 1,
+             ensemble_dir: Path | list[Path] | None = None, threads: int = 1,
              progress: bool = True,
              split: str = "test", split_note: str = "", runtime: Runtime | None = None,
              allow_other_scene: bool = False,
-             device: str = "cpu") -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
+             device: str = "cpu", intervals: Intervals | None = None
+             ) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
     """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
 
-    ``ensemble_dir`` holds the DEM ensemble, ``<sim id>.h5`` per sim, scored as a third method.
+    ``ensemble_dir``: the DEM ensemble's member folders (one or several), ``<sim id>.h5`` per sim in each, every
+    member restarted from the sim's state at its last given frame; scored one by one (dem_ensemble) and as their
+    mean (dem_ensemble_mean). The constant-velocity baseline is rolled out with the same ``runtime`` as the model
+    (:mod:`surrogate.baseline`). ``intervals``: the bootstrap of every figure (default: the config's).
     ``frames``: the taus of the article-style Acc (every predicted frame when None). ``split`` and ``split_note``
     name the split the sims come from in every row written; ``runtime``
     sets the switches of rollouts made here (:mod:`surrogate.runtime`), on ``device``
@@ -194,6 +247,8 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     cap = simulator.max_neighbours
     props = list(meta["model"].get("properties") or [])
     per_step, sims = [], []
+    member_dirs = [] if ensemble_dir is None else as_paths(ensemble_dir)
+    box = (simulator.lower.double().cpu().numpy(), simulator.upper.double().cpu().numpy())
     for path in tqdm(data_files(data), desc="evaluate", unit="sim", disable=not progress):
         traj = h5md.read(path)
         sim = load_sim(path, meta["stats"], props, traj, allow_other_scene)
@@ -214,20 +269,18 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
             seconds = result.seconds / max(result.n_predicted, 1)
             capped, dropped = (result.timing[key] / max(result.n_predicted, 1) for key in ("capped", "dropped"))
         truth = np.asarray(traj.position, np.float64)
-        baseline = constant_velocity(truth, traj.kinematic, history)
+        baseline = constant_velocity(truth, traj.kinematic, history, runtime, box, traj.radius)
         predictions, nonfinite = {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None}
-        if ensemble_dir is not None:
-            predictions[ENSEMBLE] = read_ensemble(Path(ensemble_dir) / f"{sim.id}.h5", traj)
-            nonfinite[ENSEMBLE] = None
-        entry = Evaluated(sim.id, traj, truth, predictions, nonfinite, seconds, capped, dropped)
+        members = [read_ensemble(Path(folder) / f"{sim.id}.h5", traj, history) for folder in member_dirs]
+        entry = Evaluated(sim.id, traj, truth, predictions, nonfinite, seconds, capped, dropped, members)
         if bad is not None:
             log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
         sims.append(entry)
-        per_step.extend(score(sim.id, traj, truth, entry.predictions, history, body_displacement))
+        per_step.extend(score(sim.id, traj, truth, entry.predictions, history, body_displacement, members))
     if not sims:
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)
-    table = summarise(steps, frames)
+    table = summarise(steps, frames, intervals)
     scene = table["scene"].iloc[0]
     timing = [{"scene": scene, "method": MODEL, "metric": SECONDS, "sim": "all",
                "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])), "n_sims": len(sims)}]
@@ -248,76 +301,6 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     return table, steps, sims
 
 
-def summarise(steps: pd.DataFrame, frames: list[int] | None = None) -> pd.DataFrame:
-    """metrics.csv rows: per method and metric over all sims (``sim = all``), plus rollout MSE per sim.
-
-    ``acc_percent`` is the article's Acc, of the test-set mean curve over the taus ``frames`` (every predicted
-    frame when None; the taus used in ``acc_frames``); ``acc_pooled_percent`` the same ratio pooled over every
-    (sim, frame) pair (:mod:`surrogate.metrics.accuracy`)."""
-    rows = []
-    order = list(dict.fromkeys(steps["metric"]))
-    for (method, metric), group in steps.groupby(["method", "metric"], sort=False):
-        scene = group["scene"].iloc[0]
-        per_sim = group.groupby("sim", sort=False)["prediction"].mean(skipna=False)   # a blow-up stays NaN
-        flagged = group.loc[group["blown_up"], "sim"].unique() if "blown_up" in group else []
-        blown_sims = list(dict.fromkeys([*flagged, *(per_sim.index[per_sim.isna()] if metric == MSE else [])]))
-        base = {"scene": scene, "method": method, "metric": metric, "n_sims": int(group["sim"].nunique()),
-                "n_frames": int(len(group)), "n_blown_up": len(blown_sims), "blown_up_sims": " ".join(blown_sims)}
-        if metric == MSE:
-            rows.append({**base, "sim": "all", "mse": float(per_sim.mean(skipna=False)),
-                         "mean_prediction": float(per_sim.mean(skipna=False))})
-            for sim, value in per_sim.items():
-                rows.append({**base, "sim": sim, "mse": float(value), "mean_prediction": float(value),
-                             "n_sims": 1, "n_frames": int((group["sim"] == sim).sum()),
-                             "n_blown_up": int(sim in blown_sims), "blown_up_sims": sim if sim in blown_sims else ""})
-        elif metric in plausibility.AGGREGATE:
-            rows.append({**base, "sim": "all", **_plausibility(metric, group, frames, bool(blown_sims))})
-        elif group["truth"].notna().any():
-            truth, prediction = group["truth"].to_numpy(), group["prediction"].to_numpy()
-            pooled, left_out = accuracy(truth, prediction)
-            curve = curve_accuracy(group["tau"].to_numpy(), truth, prediction, frames)
-            # a blown-up rollout has no accuracy, only its flag
-            acc, pooled = (float("nan"), float("nan")) if blown_sims else (curve.acc, pooled)
-            kept = np.isfinite(truth) & (truth != 0)          # the pairs the pooled Acc averages over
-            rows.append({**base, "sim": "all", "acc_percent": acc, "acc_frames": frame_list(curve.frames),
-                         "acc_pooled_percent": pooled,
-                         "mean_truth": float(truth[kept].mean()) if kept.any() else float("nan"),
-                         "mean_prediction": float(prediction[kept].mean()) if kept.any() else float("nan"),
-                         "n_frames_left_out": left_out})
-        else:
-            # Dis: NaN where the true body is empty (left out, counted), +inf where the prediction blew up
-            values = group["prediction"].to_numpy()
-            defined = ~np.isnan(values)
-            rows.append({**base, "sim": "all", "mean_prediction": float(values[defined].mean())
-                         if defined.any() and not blown_sims else float("nan"),
-                         "n_frames_left_out": int((~defined).sum())})
-    columns = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
-               "mean_truth", "mean_prediction", "n_sims",
-               "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims"]
-    table = pd.DataFrame(rows).reindex(columns=columns)
-    table["metric"] = pd.Categorical(table["metric"], categories=order, ordered=True)
-    table = table.sort_values(["metric", "method"], kind="stable").reset_index(drop=True)
-    table["metric"] = table["metric"].astype(str)
-    return table
-
-
-def _plausibility(metric: str, group: pd.DataFrame, frames: list[int] | None, blown: bool) -> dict:
-    """A plausibility measure over the scored frames of every sim: the truth's and the prediction's largest value
-    (overlaps, kinetic energy) or sum (particles outside the box); the kinetic energy also gets the article-style
-    Acc against the truth. A blown-up rollout has no value, only its flag."""
-    how = plausibility.AGGREGATE[metric]
-    truth, prediction = group["truth"].to_numpy(np.float64), group["prediction"].to_numpy(np.float64)
-    reduce = np.nanmax if how == "max" else np.nansum
-    out = {"mean_truth": float(reduce(truth)) if np.isfinite(truth).any() else float("nan"),
-           "mean_prediction": float("nan") if blown or not np.isfinite(prediction).any() else float(reduce(prediction)),
-           "n_frames_left_out": int((~np.isfinite(truth)).sum())}
-    if metric == "Kinetic energy" and not blown:
-        curve = curve_accuracy(group["tau"].to_numpy(), truth, prediction, frames)
-        out.update(acc_percent=curve.acc, acc_frames=frame_list(curve.frames),
-                   acc_pooled_percent=accuracy(truth, prediction)[0])
-    return out
-
-
 def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
     """Per method, metric and tau: truth and prediction averaged over sims (``sim = all`` rows)."""
     keys = ["scene", "method", "metric", "tau", "frame"] + (["history"] if "history" in steps.columns else [])
@@ -335,7 +318,7 @@ def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv:
         mean = mean_per_step(steps)
         # the provenance columns (the same in every row), not the keys of the mean: under several protocols the
         # mean rows keep their own history
-        extra = [c for c in steps.columns if c not in ("truth", "prediction", "blown_up", *mean.columns)]
+        extra = [c for c in steps.columns if c not in (*STEP_VALUES, *mean.columns)]
         both = pd.concat([mean.assign(**{c: steps[c].iloc[0] for c in extra}), steps], ignore_index=True)
         with atomic_path(Path(per_step_csv)) as tmp:
             both.to_csv(tmp, index=False)

@@ -30,10 +30,13 @@ def read_rollout(path: Path, sha: str, history: int) -> h5md.Trajectory:
     return traj
 
 
-def read_ensemble(path: Path, traj: h5md.Trajectory) -> np.ndarray:
-    """The DEM ensemble member of a sim: the same sweep row rerun from a perturbed packing, on the same frames."""
+def read_ensemble(path: Path, traj: h5md.Trajectory, history: int | None = None) -> np.ndarray:
+    """A DEM ensemble member of a sim: the same sweep row rerun by its engine and perturbed at the last given
+    frame, on the same frames. With ``history`` (K), its first K frames must be the sim's own, bit for bit (the
+    member starts where the surrogate starts)."""
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: no DEM ensemble run of this sim (the ensemble stage makes one per test sim)")
+        raise FileNotFoundError(f"{path}: no DEM ensemble run of this sim (the ensemble stage makes one per test sim "
+                                "and member)")
     member = h5md.read(path)
     if member.position.shape != traj.position.shape:
         raise ValueError(f"{path}: shape {member.position.shape} differs from the sim's {traj.position.shape}")
@@ -41,4 +44,10 @@ def read_ensemble(path: Path, traj: h5md.Trajectory) -> np.ndarray:
         raise ValueError(f"{path}: its frames are recorded at other times than the sim's")
     if not np.array_equal(member.kinematic, traj.kinematic) or not np.array_equal(member.species, traj.species):
         raise ValueError(f"{path}: its particles (species or kinematic mask) differ from the sim's")
-    return np.asarray(member.position, np.float64)
+    position = np.asarray(member.position, np.float64)
+    given = np.asarray(traj.position, np.float64)[:history]
+    if history is not None and not np.array_equal(position[:history], given):
+        worst = float(np.max(np.abs(position[:history] - given)))
+        raise ValueError(f"{path}: its first {history} frames differ from the sim's (largest difference {worst:.3g} "
+                         "m); a member must start from the sim's state at its last given frame (rerun the ensemble)")
+    return position

@@ -17,22 +17,22 @@ def accuracy(truth: np.ndarray, prediction: np.ndarray) -> tuple[float, int]:
         \mathrm{Acc}(M) = \frac{1}{|F|}\sum_{\tau \in F}\Big(1 - \frac{|M_{pred}(\tau) - M_{true}(\tau)|}
         {|M_{true}(\tau)|}\Big) \times 100\,\%
 
-    F holds the pairs whose truth is defined and non-zero; pairs where the truth is 0 (or
-    undefined, e.g. no landslide body yet) are left out and counted. A pair whose prediction is
-    undefined while the truth is not (an empty predicted body, a rollout that blew up) scores 0 %.
-    Returns ``(nan, n_left_out)`` when every pair is left out.
+    F holds the pairs whose truth and prediction are both defined and whose truth is non-zero; every other
+    pair is left out and counted: a truth of 0, an undefined value on either side (no landslide body yet, an
+    empty predicted body). Undefined values are treated alike on both sides, never scored 0 %
+    (:mod:`surrogate.metrics.scores` counts the one-sided ones). Returns ``(nan, n_left_out)`` when every
+    pair is left out.
     """
     truth = np.asarray(truth, np.float64).ravel()
     prediction = np.asarray(prediction, np.float64).ravel()
     if truth.shape != prediction.shape:
         raise ValueError(f"truth and prediction differ in length: {truth.shape} vs {prediction.shape}")
-    kept = np.isfinite(truth) & (truth != 0)
+    kept = np.isfinite(truth) & (truth != 0) & np.isfinite(prediction)
     left_out = int((~kept).sum())
     if not kept.any():
         return float("nan"), left_out
     t, p = truth[kept], prediction[kept]
-    terms = np.where(np.isfinite(p), 1.0 - np.abs(p - t) / np.abs(t), 0.0)
-    return float(terms.mean() * 100.0), left_out
+    return float((1.0 - np.abs(p - t) / np.abs(t)).mean() * 100.0), left_out
 
 
 @dataclass(frozen=True)
@@ -54,11 +54,11 @@ def curve_accuracy(tau: np.ndarray, truth: np.ndarray, prediction: np.ndarray,
         \mathrm{Acc}(M) = \frac{1}{|T|}\sum_{\tau \in T}\Big(1 - \frac{|\bar M_{pred}(\tau) - \bar M_{true}(\tau)|}
         {|\bar M_{true}(\tau)|}\Big) \times 100\,\%
 
-    ``tau``, ``truth`` and ``prediction`` hold one entry per (sim, tau). At each tau, the bar means average
-    over the sims whose truth is defined there. T is ``frames`` (every tau present when None), less the taus
-    whose mean truth is 0 or undefined (left out, listed) and those beyond the rollout (missing, listed).
-    A tau at which any of those sims has an undefined prediction (an empty predicted body, a blown-up rollout)
-    scores 0 %, as an undefined pair does in :func:`accuracy`: a missing prediction is an error, not a gap.
+    ``tau``, ``truth`` and ``prediction`` hold one entry per (sim, tau). At each tau, both bar means average
+    over the same entries, those where truth and prediction are both defined (an undefined value on either side
+    is left out and counted in ``undefined_prediction`` where only the prediction is undefined). T is ``frames``
+    (every tau present when None), less the taus whose mean truth is 0 or undefined (left out, listed) and those
+    beyond the rollout (missing, listed).
     """
     tau = np.asarray(tau).ravel()
     truth = np.asarray(truth, np.float64).ravel()
@@ -71,15 +71,15 @@ def curve_accuracy(tau: np.ndarray, truth: np.ndarray, prediction: np.ndarray,
     missing = tuple(t for t in wanted if t not in present)
     terms, scored, left_out, undefined = [], [], [], 0
     for t in (t for t in wanted if t in present):
-        at = (tau == t) & np.isfinite(truth)
+        defined = (tau == t) & np.isfinite(truth)
+        undefined += int((~np.isfinite(prediction[defined])).sum())
+        at = defined & np.isfinite(prediction)
         mean_truth = truth[at].mean() if at.any() else np.nan
         if not np.isfinite(mean_truth) or mean_truth == 0:
             left_out.append(t)
             continue
-        bad = int((~np.isfinite(prediction[at])).sum())
-        undefined += bad
         scored.append(t)
-        terms.append(0.0 if bad else 1.0 - abs(prediction[at].mean() - mean_truth) / abs(mean_truth))
+        terms.append(1.0 - abs(prediction[at].mean() - mean_truth) / abs(mean_truth))
     acc = float(np.mean(terms) * 100.0) if terms else float("nan")
     return CurveAccuracy(acc, tuple(scored), tuple(left_out), missing, undefined)
 

@@ -192,7 +192,7 @@ def test_the_dem_ensemble_is_scored_as_a_third_method_by_the_same_code(tiny_data
     assert cli.main(["evaluate", "--checkpoint", str(trained), "--data", *map(str, sims), "--history", "4",
                      "--ensemble", str(ensemble), "--frames", "2", "4", "9", "--out", str(out), "--no-progress"]) == 0
     table = pd.read_csv(out)
-    assert set(table["method"]) == {"graphdem", "constant_velocity", "dem_ensemble"}
+    assert set(table["method"]) == {"graphdem", "constant_velocity", "dem_ensemble", "dem_ensemble_mean"}
     member = table[(table["method"] == "dem_ensemble") & (table["sim"] == "all")].set_index("metric")
     assert member.at["rollout MSE", "mse"] == 0.0
     # the tiny slides have no landslide body yet (their scene metrics are undefined); the kinetic energy has a truth

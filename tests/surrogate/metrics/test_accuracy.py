@@ -14,9 +14,9 @@ def test_zero_truth_frames_are_left_out_and_counted():
     assert acc == pytest.approx(87.5) and left_out == 2
 
 
-def test_undefined_truth_is_left_out_and_undefined_prediction_scores_zero():
-    acc, left_out = accuracy([np.nan, 5.0, 5.0], [1.0, np.nan, 5.0])
-    assert acc == pytest.approx(50.0) and left_out == 1
+def test_an_undefined_value_on_either_side_is_left_out_alike_never_scored_zero():
+    acc, left_out = accuracy([np.nan, 5.0, 5.0, 4.0], [1.0, np.nan, 5.0, 3.0])   # only 100 % and 75 % are scored
+    assert acc == pytest.approx(87.5) and left_out == 2
 
 
 def test_accuracy_can_be_negative_when_the_error_exceeds_the_truth():
@@ -85,9 +85,10 @@ def test_curve_accuracy_frame_set_zero_truth_missing_taus_and_undefined_predicti
     truth = np.array([0.0, 0.0, 4.0, np.nan, 5.0, 5.0, 2.0, 2.0])
     prediction = np.array([1.0, 1.0, 3.0, 9.0, 5.0, np.nan, 2.0, 2.0])
     # tau 1: mean truth 0, left out; tau 2: only the sim with a defined truth counts (75 %); tau 3: one sim
-    # has no prediction (0 %); tau 4: exact (100 %); tau 9 is asked for but not reached
+    # has no prediction, so both means take the other sim only (100 %, counted as undefined); tau 4: exact
+    # (100 %); tau 9 is asked for but not reached
     result = curve_accuracy(tau, truth, prediction, [1, 2, 3, 4, 9])
-    assert result.acc == pytest.approx((75.0 + 0.0 + 100.0) / 3)
+    assert result.acc == pytest.approx((75.0 + 100.0 + 100.0) / 3)
     assert result.frames == (2, 3, 4) and result.left_out == (1,) and result.missing == (9,)
     assert result.undefined_prediction == 1
     only = curve_accuracy(tau, truth, prediction, [4])
