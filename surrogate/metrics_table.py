@@ -30,19 +30,27 @@ PLAUSIBILITY = {"Max overlap", "P99 overlap", "Outside box", "Through wall"}
 
 # The value columns shown, with their headings.
 COLUMNS = {"acc_percent": "Acc (%), article", "acc_frames": "Acc frames (tau)",
-           "acc_pooled_percent": "Acc (%), pooled", "mse": "MSE (m²)", "mean_truth": "mean truth",
-           "mean_prediction": "mean prediction", "n_sims": "sims", "n_frames": "frames",
+           "acc_pooled_percent": "Acc (%), pooled", "mse": "MSE (m²)", "change_error": "change error",
+           "change_error_scaled": "change error, scaled", "skill": "skill vs constant velocity",
+           "error_in_spreads": "error in ensemble spreads", "vs_members": "error / members' error",
+           "mean_truth": "mean truth", "mean_prediction": "mean prediction", "n_sims": "sims", "n_frames": "frames",
            "n_frames_left_out": "frames left out", "n_blown_up": "blown up"}
 COUNTS = ("n_sims", "n_frames", "n_frames_left_out", "n_blown_up")
+# figures with a bootstrap interval (surrogate/summary.py): the column of its bounds' prefix
+INTERVALS = {"acc_percent": "acc", "mse": "mse", "change_error": "change_error", "skill": "skill",
+             "mean_prediction": "mean_prediction"}
+# figures that exist only beside a reference: skill beside constant velocity, the rest beside a DEM ensemble
+COMPARED = ("skill", "error_in_spreads", "vs_members")
 
 # The columns that apply to each kind of row; every other value column is n/a for it.
 APPLIES = {
-    "mse": {"mse", "mean_prediction", "n_sims", "n_frames", "n_blown_up"},
+    "mse": {"mse", "skill", "error_in_spreads", "vs_members", "mean_prediction", "n_sims", "n_frames", "n_blown_up"},
     "seconds": {"mean_prediction", "n_sims"},
     "cap": {"mean_prediction", "n_sims"},
-    "truth": {"acc_percent", "acc_frames", "acc_pooled_percent", "mean_truth", "mean_prediction", "n_sims",
-              "n_frames", "n_frames_left_out", "n_blown_up"},
-    "pair": {"mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
+    "truth": {"acc_percent", "acc_frames", "acc_pooled_percent", "change_error", "change_error_scaled", "skill",
+              "error_in_spreads", "vs_members", "mean_truth", "mean_prediction", "n_sims", "n_frames",
+              "n_frames_left_out", "n_blown_up"},
+    "pair": {"skill", "vs_members", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
     "plausibility": {"mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
 }
 NOT_APPLICABLE = {
@@ -64,10 +72,17 @@ table { border-collapse: collapse; }
 th, td { border: 1px solid #cbd5e1; padding: 3px 6px; text-align: right; vertical-align: top; }
 th { background: #e2e8f0; } td.text { text-align: left; }
 span.na { color: #94a3b8; font-style: italic; }
+span.ci { color: #475569; font-size: 11px; }
 span.undefined { color: #b45309; font-weight: bold; }
 span.why, td.why { color: #b45309; font-size: 11px; }
 ul.legend { color: #475569; padding-left: 18px; }
 """
+
+
+def shown(table: pd.DataFrame) -> list[str]:
+    """The value columns of :data:`COLUMNS` that the table has (a table written before a figure existed shows
+    none of it)."""
+    return [c for c in COLUMNS if c in table.columns]
 
 
 def _kind(row: pd.Series, metric_names: dict[str, set[str]]) -> str:
@@ -113,6 +128,10 @@ def why_undefined(row: pd.Series, kind: str, column: str) -> str:
         return "the DEM truth is zero or undefined in every scored frame"
     if column == "mean_prediction" and every:
         return f"undefined in all {int(frames)} scored frames"
+    if column == "skill":
+        return "no constant-velocity figure to compare with"
+    if column in COMPARED:
+        return "no DEM ensemble scored beside it"
     if kind == "seconds":
         return "no rollout timing recorded"
     if kind == "cap":
@@ -139,6 +158,9 @@ def cell(row: pd.Series, column: str, kind: str) -> tuple[str, str | None]:
         why = why_undefined(row, kind, column)
         return f'<td><span class="undefined" title="{html.escape(why)}">undefined</span></td>', why
     text = _number(column, value)
+    bounds = [row.get(f"{INTERVALS[column]}_ci_{side}") for side in ("low", "high")] if column in INTERVALS else []
+    if bounds and not any(_is_nan(b) for b in bounds):
+        text += f' <span class="ci">[{_number(column, bounds[0])}, {_number(column, bounds[1])}]</span>'
     if column == "n_blown_up" and int(value) and str(row.get("blown_up_sims") or "").strip():
         text += f' <span class="why">{html.escape(str(row["blown_up_sims"]))}</span>'
     return f"<td>{text}</td>", None
@@ -153,7 +175,7 @@ def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, se
         label = html.escape(str(row["metric"]) + (f" ({unit})" if unit else ""))
         cells = [f'<td class="text">{html.escape(str(row["method"]))}</td>', f'<td class="text">{label}</td>',
                  f'<td class="text">{html.escape(str(row["sim"]))}</td>']
-        values = [cell(row, column, kind) for column in COLUMNS]
+        values = [cell(row, column, kind) for column in shown(table)]
         whys = list(dict.fromkeys(why for _, why in values if why))
         cells += [html_cell for html_cell, _ in values]
         cells.append(f'<td class="text why">{html.escape("; ".join(whys))}</td>')
@@ -162,7 +184,8 @@ def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, se
 
 
 def _table(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, set[str]]) -> str:
-    head = "".join(f"<th>{h}</th>" for h in ("method", "metric", "sim", *COLUMNS.values(), "why undefined"))
+    head = "".join(f"<th>{h}</th>" for h in ("method", "metric", "sim", *(COLUMNS[c] for c in shown(table)),
+                                              "why undefined"))
     return f"<table>\n<tr>{head}</tr>\n{_rows(table, units, metric_names)}\n</table>"
 
 
@@ -200,7 +223,9 @@ def to_html(table: pd.DataFrame, title: str) -> str:
         '<li><span class="na">n/a</span>: the column does not apply to the metric (hover for why); '
         "an empty cell in metrics.csv.</li>"
         '<li><span class="undefined">undefined</span>: the column applies but has no value, for the reason '
-        "in the row's last column; an empty cell (NaN) in metrics.csv, never a number.</li></ul>")
+        "in the row's last column; an empty cell (NaN) in metrics.csv, never a number.</li>"
+        '<li><span class="ci">[low, high]</span>: the bootstrap interval over the sims (metrics.csv\'s '
+        "*_ci_low and *_ci_high).</li></ul>")
     return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
             + "\n".join(parts) + "\n</body></html>\n")

@@ -29,7 +29,7 @@ ROWS = [
     ("slide", "graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003",
      "test", NAN, 6),
 ]
-HEADINGS = ["method", "metric", "sim", *metrics_table.COLUMNS, "why"]
+HEADINGS = ["method", "metric", "sim", *(c for c in metrics_table.COLUMNS if c in COLUMNS), "why"]
 
 
 def cells(page: str) -> dict[tuple[str, str, str], list[str]]:
@@ -93,3 +93,26 @@ def test_a_one_tau_frame_set_is_shown_as_the_tau_not_a_float(tmp_path):
     pd.DataFrame([row, mse], columns=COLUMNS).to_csv(csv, index=False)
     page = metrics_table.write(csv, tmp_path / "metrics.html", "meteorite: metrics").read_text()
     assert cells(page)[("graphdem", "Imp Dep", "all")]["acc_frames"] == "5"
+
+
+def test_the_yardsticks_figures_show_their_bootstrap_interval_and_their_csv_numbers(tmp_path):
+    from surrogate.summary import summarise
+    from tests.surrogate.test_summary import INTERVALS, rows
+    steps = pd.DataFrame(rows("graphdem", "Max Ht", {"a": 0.1, "b": 0.3}, spread=0.25)
+                         + rows("constant_velocity", "Max Ht", {"a": 0.8, "b": 0.8}, spread=0.25)
+                         + rows("dem_ensemble", "Max Ht", {"a": 0.2, "b": 0.4}, spread=0.25))
+    csv = tmp_path / "metrics.csv"
+    table = summarise(steps, intervals=INTERVALS, units={"Max Ht": "m"})
+    table.to_csv(csv, index=False)
+    page = metrics_table.write(csv, tmp_path / "metrics.html", "slide").read_text()
+    shown = ["method", "metric", "sim", *metrics_table.shown(table), "why"]
+    found = {}
+    for row in re.findall(r"<tr>(.*?)</tr>", page, re.S):
+        texts = [" ".join(re.sub(r"<[^>]+>", " ", c).split()) for c in re.findall(r"<td[^>]*>(.*?)</td>", row, re.S)]
+        if texts:
+            found[texts[0]] = dict(zip(shown, texts, strict=True))
+    model = table.set_index("method").loc["graphdem"]
+    assert found["graphdem"]["skill"] == (f"{model['skill']:.4g} [{model['skill_ci_low']:.4g}, "
+                                          f"{model['skill_ci_high']:.4g}]")
+    assert found["graphdem"]["error_in_spreads"] == f"{model['error_in_spreads']:.4g}" == "0.8"
+    assert found["constant_velocity"]["skill"].startswith("0 ")
