@@ -24,7 +24,8 @@ PROFILE = yaml.safe_load((PROFILE_DIR / "config.yaml").read_text())
 SLURM_COMMANDS = ("sbatch", "srun", "scancel", "sinfo", "squeue", "sacct", "scontrol", "sacctmgr", "sshare")
 SUBMITTING = {"sbatch", "srun", "scancel"}
 PAPER_SIMS = 1000
-PAPER_TEST_SIMS = 100          # the test split, each rerun once from a perturbed packing (the DEM ensemble)
+PAPER_TEST_SIMS = 100          # the test split, each replayed and perturbed by every DEM ensemble member
+PAPER_MEMBERS = 5              # slide.evaluate.ensemble_members at the paper scale
 
 
 def parse_resources(text: str) -> dict:
@@ -80,9 +81,9 @@ def test_the_dry_run_uses_the_slurm_executor_and_submits_nothing(dry_run):
     # the plugin may query the cluster's configuration while reading its settings; it never submits in a dry run
     assert not [c for c in dry_run.calls if c.split()[0] in SUBMITTING], dry_run.calls
     counts = Counter(j["rule"] for j in dry_run.jobs)
-    assert counts["simulate"] == counts["convert"] == PAPER_SIMS + PAPER_TEST_SIMS
+    assert counts["simulate"] == counts["convert"] == PAPER_SIMS + PAPER_MEMBERS * PAPER_TEST_SIMS
     runs = Counter(j["wildcards"]["run"] for j in dry_run.jobs if j["rule"] == "simulate")
-    assert runs == {"slide": PAPER_SIMS, "slide/ensemble": PAPER_TEST_SIMS}
+    assert runs == {"slide": PAPER_SIMS, **{f"slide/ensemble/m{j}": PAPER_TEST_SIMS for j in range(PAPER_MEMBERS)}}
     assert counts["train"] == counts["evaluate"] == 1 and counts["rollout"] == 100
 
 
@@ -95,17 +96,17 @@ def test_each_sims_simulate_and_convert_are_grouped_fifty_to_a_submission(dry_ru
             groups.setdefault(job["group"], []).append(job)
     assert all(j["group"] is not None for j in dry_run.jobs if j["rule"] in ("simulate", "convert"))
     assert {name for name, _ in groups} == {"sims"}
-    # 22 submissions, not 2200: the 1000 sims and the ensemble's 100 reruns
-    assert len(groups) == math.ceil((PAPER_SIMS + PAPER_TEST_SIMS) / per_sim) == 22
+    # 30 submissions, not 3000: the 1000 sims and the ensemble's 5 x 100 members
+    assert len(groups) == math.ceil((PAPER_SIMS + PAPER_MEMBERS * PAPER_TEST_SIMS) / per_sim) == 30
     for members in groups.values():
         sims = {rule: sorted((j["wildcards"]["run"], j["wildcards"]["sim"]) for j in members if j["rule"] == rule)
                 for rule in ("simulate", "convert")}
         assert len(members) == 2 * per_sim and sims["simulate"] == sims["convert"]    # whole sims, both steps
         assert {j["rule"] for j in members} == {"simulate", "convert"}
-    # what reaches SLURM for results/slide/metrics.csv: 2314 jobs in 136 submissions
+    # what reaches SLURM for results/slide/metrics.csv: 3114 jobs in 144 submissions
     ungrouped = Counter(j["rule"] for j in dry_run.jobs if j["group"] is None)
     assert ungrouped == {"sweep": 1, "prepare": 10, "dataset": 1, "train": 1, "rollout": 100, "evaluate": 1}
-    assert len(dry_run.jobs) == 2314 and len(groups) + ungrouped.total() == 136
+    assert len(dry_run.jobs) == 3114 and len(groups) + ungrouped.total() == 144
 
 
 def test_every_job_gets_the_resources_the_profile_gives_its_rule(dry_run):

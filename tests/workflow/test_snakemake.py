@@ -221,20 +221,38 @@ def simulated(proc) -> list[str]:
 
 
 def test_changed_weak_friction_reruns_sims_but_not_the_packing(workdir):
-    """Every sim reruns, and so does the DEM ensemble's rerun of the test sim (it shares the sims' parameters)."""
+    """Every sim reruns, and so do the DEM ensemble's two members of the test sim (they share the sims'
+    parameters)."""
     proc = snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", weak_friction: 0.1}",))
     jobs = planned(proc)
-    assert jobs.get("simulate") == 4 and jobs.get("convert") == 4 and "prepare" not in jobs
-    assert simulated(proc) == ["results/slide/ensemble/raw/slide_0000",
+    assert jobs.get("simulate") == 5 and jobs.get("convert") == 5 and "prepare" not in jobs
+    assert simulated(proc) == [*(f"results/slide/ensemble/m{j}/raw/slide_0000" for j in range(2)),
                                *(f"results/slide/raw/slide_000{i}" for i in range(3))]
 
 
+def test_changed_history_reruns_only_the_ensemble_members(workdir):
+    """The members are perturbed after the last history frame K - 1: a new K reruns them (and retrains), not the
+    sims."""
+    proc = snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", model: {history: 5}}",))
+    assert planned(proc).get("simulate") == 2
+    assert simulated(proc) == [f"results/slide/ensemble/m{j}/raw/slide_0000" for j in range(2)]
+
+
+def test_more_ensemble_members_run_only_the_new_members(workdir):
+    proc = snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", evaluate: {ensemble_members: 3}}",))
+    jobs = planned(proc)
+    assert jobs.get("simulate") == 1 and jobs.get("convert") == 1 and "train" not in jobs
+    assert simulated(proc) == ["results/slide/ensemble/m2/raw/slide_0000"]
+
+
 def test_added_sim_runs_only_that_sim(workdir):
-    """The fourth sim is the one the splits give to test, so its ensemble rerun comes with it; nothing else runs."""
+    """The fourth sim is the one the splits give to test, so its ensemble members come with it; nothing else
+    runs."""
     proc = snakemake(workdir, TARGET, "-n", config=(SMALL.replace("n_sims: 3", "n_sims: 4"),))
     jobs = planned(proc)
-    assert jobs.get("simulate") == 2 and jobs.get("convert") == 2 and "prepare" not in jobs
-    assert simulated(proc) == ["results/slide/ensemble/raw/slide_0003", "results/slide/raw/slide_0003"]
+    assert jobs.get("simulate") == 3 and jobs.get("convert") == 3 and "prepare" not in jobs
+    assert simulated(proc) == [*(f"results/slide/ensemble/m{j}/raw/slide_0003" for j in range(2)),
+                               "results/slide/raw/slide_0003"]
 
 
 def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
@@ -245,7 +263,7 @@ def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
     for cores, expected in (("-c2", 2), ("-c1", 1)):
         proc = snakemake(workdir, TARGET, "-n", "-p", cores, config=(ranks.replace("n_sims: 3", "n_sims: 4"),))
         jobs = planned(proc)
-        assert jobs.get("simulate") == 2 and "prepare" not in jobs          # the new sim and its ensemble rerun
+        assert jobs.get("simulate") == 3 and "prepare" not in jobs          # the new sim and its 2 ensemble members
         for job in (proc.stdout + proc.stderr).split("rule simulate:")[1:]:
             job = job.split("\nrule ")[0]
             assert ("threads: 2" in job) == (expected == 2), job
@@ -254,7 +272,7 @@ def test_changed_ranks_rerun_nothing_and_new_sims_run_on_them(workdir):
 
 def test_changed_stiffness_resettles_the_packing(workdir):
     jobs = planned(snakemake(workdir, TARGET, "-n", config=(SMALL[:-1] + ", young: 5.0e9}",)))
-    assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3 + 1                # the sims and the ensemble's
+    assert jobs.get("prepare") == 1 and jobs.get("simulate") == 3 + 2                # the sims and the ensemble's
 
 
 @pytest.mark.parametrize("override, expected", [
@@ -427,11 +445,12 @@ def test_scene_outputs(ci_results, scene, dim, n_types, metrics):
     assert metrics | {"rollout MSE"} <= set(table["metric"])
     mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")].set_index("method")["mse"]
     assert np.isfinite(mse["graphdem"]) and mse["graphdem"] > 0 and np.isfinite(mse["constant_velocity"])
-    # the DEM ensemble: each test sim rerun from a packing perturbed by 1e-6 radii differs from it, but by far less
-    # than extrapolation does (the chaos floor)
+    # the DEM ensemble: each test sim replayed to its last history frame and perturbed there by 1e-5 radii differs
+    # from it, but by far less than extrapolation does (the chaos floor); two members per test sim at the ci scale
     assert 0 < mse["dem_ensemble"] < mse["constant_velocity"]
-    assert sorted(p.stem for p in (res / "ensemble" / "sims").glob("*.h5")) == \
-        sorted(table.loc[(table["metric"] == "rollout MSE") & (table["sim"] != "all"), "sim"].unique())
+    scored = sorted(table.loc[(table["metric"] == "rollout MSE") & (table["sim"] != "all"), "sim"].unique())
+    for j in range(2):
+        assert sorted(p.stem for p in (res / "ensemble" / f"m{j}" / "sims").glob("*.h5")) == scored
     steps = pd.read_csv(res / "metrics_per_step.csv")
     assert set(steps["method"]) == {"graphdem", "constant_velocity", "dem_ensemble"}
     overall = table[table["sim"] == "all"].set_index(["method", "metric"])
@@ -490,7 +509,7 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
     for sim in ids:
         row = table.set_index("sim").loc[sim]
         truth = h5md.read(res / "sims" / f"{sim}.h5")
-        member = h5md.read(res / "ensemble" / "sims" / f"{sim}.h5")
+        member = h5md.read(res / "ensemble" / "m0" / "sims" / f"{sim}.h5")       # the first member
         assert row["coulomb_peak"] == pytest.approx(truth.parameters["normal_stress"] * np.mean(train_ratio), rel=1e-9)
         assert row["dem_peak"] == pytest.approx(truth.observables["shear_stress"][k:].max(), rel=1e-9)
         assert row["ensemble_peak"] == pytest.approx(member.observables["shear_stress"][k:].max(), rel=1e-9)

@@ -11,6 +11,7 @@ from generators import locks as glocks
 from generators import property_test as gproperty
 from generators import report as greport
 from generators import engine as gengine
+from generators import ensemble as gensemble
 from generators import launch as glaunch
 from generators import scales as gscales
 from generators import scenes as gscenes
@@ -38,9 +39,19 @@ ENGINES = list(gengine.DRIVERS)
 # configured engine from packings perturbed by crosscheck.perturbation radii (results/crosscheck/<scene>/chaos/).
 CROSSCHECK_RUNS = [f"crosscheck/{s}/{e}" for s in SCENES for e in ENGINES if e != CFG[s]["engine"]]
 CROSSCHECK_RUNS += [f"crosscheck/{s}/chaos" for s in SCENES]
-# The DEM ensemble (results/<scene>/ensemble/): the scene's test sims rerun by its configured engine from packings
-# perturbed by evaluate.ensemble_perturbation radii, scored beside Graph-DEM (the chaos floor).
-ENSEMBLE_RUNS = [f"{s}/ensemble" for s in SCENES]
+
+
+def ensemble_members(scene: str) -> int:
+    """The DEM ensemble's members per test sim of ``scene``: evaluate.ensemble_members, 0 (none) where
+    evaluate.ensemble_perturbation is null."""
+    section = CFG[scene]["evaluate"]
+    return 0 if section["ensemble_perturbation"] is None else int(section["ensemble_members"])
+
+
+# The DEM ensemble (results/<scene>/ensemble/m<j>/, member j = 0..evaluate.ensemble_members - 1): each test sim's
+# run replayed by its configured engine to its last history frame K - 1, every moving particle displaced there by
+# evaluate.ensemble_perturbation radii, and run on (generators/ensemble.py); scored beside Graph-DEM (the chaos floor).
+ENSEMBLE_RUNS = [f"{s}/ensemble/m{j}" for s in SCENES for j in range(ensemble_members(s))]
 # The property test's reruns (results/<scene>/property/<i>/, article Fig. 14): the scene's test sims rerun by its
 # configured engine with one node property at its i-th value (evaluate.property_test; generators/property_test.py).
 PROPERTY_VALUES = {s: gproperty.values(s, CFG[s]) for s in SCENES}
@@ -109,7 +120,7 @@ def scene_engine(wildcards) -> str:
 
 
 def run_scene(wildcards) -> str:
-    """The scene of a run (results/<scene>, results/<scene>/ensemble, results/<scene>/property/<i> or
+    """The scene of a run (results/<scene>, results/<scene>/ensemble/m<j>, results/<scene>/property/<i> or
     results/crosscheck/<scene>/<engine>)."""
     parts = wildcards.run.split("/")
     return parts[1] if parts[0] == "crosscheck" else parts[0]
@@ -162,15 +173,23 @@ def _physics(scene: str, sim: str) -> dict:
     return row
 
 
+def ensemble_row(scene: str, run: str) -> dict:
+    """What a DEM ensemble member's run (results/<scene>/ensemble/m<j>) adds to its sim's row: the member j, the
+    frame it is perturbed after (the last history frame, K - 1) and the displacement in radii."""
+    return {gensemble.MEMBER: int(run.rsplit("/m", 1)[1]), gensemble.FRAME: CFG[scene]["model"]["history"] - 1,
+            gensemble.SIZE: CFG[scene]["evaluate"]["ensemble_perturbation"]}
+
+
 def sim_row_json(wildcards) -> str:
-    """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run, one property at the
-    run's value in a property-test run)."""
+    """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run, replayed and perturbed
+    at the last history frame in a DEM ensemble member's run, one property at the run's value in a property-test
+    run)."""
     scene = run_scene(wildcards)
     row = {**_physics(scene, wildcards.sim), "engine": run_engine(wildcards)}
     if wildcards.run.endswith("/chaos"):
         row["perturbation"] = CFG["crosscheck"]["perturbation"]
-    elif wildcards.run.endswith("/ensemble"):
-        row["perturbation"] = CFG[scene]["evaluate"]["ensemble_perturbation"]
+    elif wildcards.run in ENSEMBLE_RUNS:
+        row.update(ensemble_row(scene, wildcards.run))
     elif wildcards.run in PROPERTY_RUNS:
         row[CFG[scene]["evaluate"]["property_test"]["property"]] = PROPERTY_VALUES[scene][int(wildcards.run.split("/")[2])]
     return _json(row)
@@ -384,12 +403,24 @@ def card_machine_args(wildcards) -> list[str]:
     return glaunch.MachineArgs([*glaunch.device_args(CFG), "--train-threads", str(train_threads(wildcards))])
 
 
+def ensemble_dirs(scene: str) -> list[str]:
+    """The DEM ensemble's member folders of ``scene`` (<sim id>.h5 per test sim in each), member 0 first; none
+    without an ensemble."""
+    return [f"results/{scene}/ensemble/m{j}/sims" for j in range(ensemble_members(scene))]
+
+
 def ensemble_sims(wildcards) -> list[str]:
-    """The DEM ensemble of a scene's test sims (none where evaluate.ensemble_perturbation is null, or for a
-    public benchmark, whose engine runs are not ours to repeat)."""
-    if not is_scene(wildcards) or CFG[wildcards.name]["evaluate"]["ensemble_perturbation"] is None:
+    """Every DEM ensemble member of a scene's test sims (none without an ensemble, or for a public benchmark,
+    whose engine runs are not ours to repeat)."""
+    if not is_scene(wildcards):
         return []
-    return [f"results/{wildcards.name}/ensemble/sims/{i}.h5" for i in test_ids(wildcards.name)]
+    return [f"{folder}/{i}.h5" for folder in ensemble_dirs(wildcards.name) for i in test_ids(wildcards.name)]
+
+
+def first_member_sims(wildcards) -> list[str]:
+    """Member 0 of the DEM ensemble of a scene's test sims: the one rerun the property and stress tests set
+    beside the sims (none without an ensemble)."""
+    return [f"{folder}/{i}.h5" for folder in ensemble_dirs(wildcards.name)[:1] for i in test_ids(wildcards.name)]
 
 
 def _property_runs(scene: str) -> list[str]:
@@ -407,8 +438,9 @@ def property_test_inputs(wildcards) -> dict[str, list[str]]:
     runs = _property_runs(scene)
     inputs = {"sims": [f"{run}/sims/{i}.h5" for run in runs for i in ids],
               "rollouts": [f"{run}/rollouts/{i}.h5" for run in runs for i in ids]}
-    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
-        inputs["chaos"] = [f"results/{scene}/{where}/{i}.h5" for where in ("sims", "ensemble/sims") for i in ids]
+    if ensemble_members(scene):
+        folders = (f"results/{scene}/sims", ensemble_dirs(scene)[0])
+        inputs["chaos"] = [f"{folder}/{i}.h5" for folder in folders for i in ids]
     return inputs
 
 
@@ -425,9 +457,7 @@ def stress_readout_json(wildcards) -> str:
 def stress_test_args(wildcards) -> list[str]:
     """The rollouts, K, tolerance and (where the scene has one) DEM ensemble of the stress test."""
     scene = wildcards.name
-    chaos = []
-    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
-        chaos = ["--ensemble", f"results/{scene}/ensemble/sims"]
+    chaos = ["--ensemble", *ensemble_dirs(scene)[:1]] if ensemble_members(scene) else []
     return ["--rollouts", f"results/{scene}/rollouts", "--history", str(history_length(wildcards)),
             "--tolerance", str(CFG[scene]["stress_readout"]["tolerance"]), *chaos]
 
@@ -437,8 +467,8 @@ def property_test_args(wildcards) -> list[str]:
     scene = wildcards.scene
     test = CFG[scene]["evaluate"]["property_test"]
     chaos = []
-    if CFG[scene]["evaluate"]["ensemble_perturbation"] is not None:
-        chaos = ["--sims-dir", f"results/{scene}/sims", "--ensemble", f"results/{scene}/ensemble/sims"]
+    if ensemble_members(scene):
+        chaos = ["--sims-dir", f"results/{scene}/sims", "--ensemble", ensemble_dirs(scene)[0]]
     return ["--runs", *_property_runs(scene),
             "--sims", *test_ids(scene), "--property", test["property"],
             "--history", str(history_length(wildcards)), "--tolerance", str(test["tolerance"]), *chaos]
@@ -447,7 +477,7 @@ def property_test_args(wildcards) -> list[str]:
 def evaluation_args(wildcards) -> list[str]:
     """The split, protocols, rollouts and DEM ensemble of the evaluate stage."""
     if is_scene(wildcards):
-        ensemble = ["--ensemble", f"results/{wildcards.name}/ensemble/sims"] if ensemble_sims(wildcards) else []
+        ensemble = ["--ensemble", *ensemble_dirs(wildcards.name)] if ensemble_sims(wildcards) else []
         return ["--split", "test", "--history", str(history_length(wildcards)),
                 "--rollouts", f"results/{wildcards.name}/rollouts", *ensemble]
     bench = CFG[wildcards.name]

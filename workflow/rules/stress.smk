@@ -2,7 +2,7 @@
 # docs/shear-scene.md, "The predicted shear stress"). A pair-force readout (surrogate/stress.py) is fitted to the
 # train sims' DEM frames and their shear_stress observable, chosen on valid; stress.csv reads the test sims' stress
 # from the DEM's frames, Graph-DEM's rollouts and constant velocity with it, beside the DEM's observable and its
-# ensemble rerun's (the chaos).
+# first DEM ensemble member's (the chaos).
 rule stress_readout:
     input:
         splits="results/{name}/dataset/splits.csv",
@@ -30,7 +30,7 @@ rule stress_test:
         checkpoint="results/{name}/model/best.pt",
         sims=test_sims,
         rollouts=evaluated_rollouts,
-        ensemble=ensemble_sims,
+        ensemble=first_member_sims,
     output:
         table=report("results/{name}/stress.csv", caption="../report/stress.rst",
                      category=report_category, subcategory="stress",
