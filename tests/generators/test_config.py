@@ -5,7 +5,7 @@ from generators import config, scenes
 
 
 def test_default_config_is_valid_and_scales_fill_sizes():
-    assert config.load()["slide"]["n_sims"] == 60
+    assert config.load()["slide"]["n_sims"] == 80 and config.load()["slide"]["split"] == [0.525, 0.225, 0.25]
     assert config.load({"scale": "ci"})["slide"]["n_sims"] == 4
     assert config.load({"scale": "paper"})["slide"]["n_sims"] == 1000
 
