@@ -12,7 +12,8 @@ from surrogate import cli, doc_tables
 from surrogate.doc_tables import blocks, kinds
 
 NAN = math.nan
-# metrics.csv's columns (surrogate.evaluate.summarise, then the provenance evaluate adds to every row)
+# metrics.csv's columns before the evaluation gained skill, change errors and intervals (such a CSV still renders),
+# then the provenance evaluate adds to every row
 COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
            "mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims",
            "split", "split_note", "history", "checkpoint", "checkpoint_sha", "config_sha", "code_version", "config"]
@@ -27,7 +28,7 @@ ROWS = [  # method, metric, sim, acc, acc_frames, pooled, mse, truth, prediction
     ("graphdem", "seconds per frame", "all", NAN, NAN, NAN, NAN, NAN, 0.0131, 2, NAN, NAN, NAN, ""),
     ("graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, 0.61, NAN, 0.61, 1, 14, NAN, 0, ""),
 ]
-# columns the evaluation is gaining: skill, change error, errors in ensemble spreads and bootstrap intervals
+# some of the columns the evaluation gained: skill, errors in ensemble spreads and bootstrap intervals
 _ = NAN
 NEW = {  # one value per row of ROWS
     "mse_ci_low": [0.41, 1.5, 0.3, _, _, _, _, _], "mse_ci_high": [0.69, 2.2, 0.6, _, _, _, _, _],
@@ -112,6 +113,47 @@ def test_new_columns_are_shown_with_their_intervals_where_the_csv_has_them(repo)
     assert rows["Max Ht: skill"] == ["", "0.58 [0.41, 0.77]", kinds.BLOWN_UP, ""]
     assert rows["rollout MSE: error in ensemble spreads"] == ["", "1.21", "2.05", "1.00"]
     assert "Max Ht: error in ensemble spreads" not in rows and "Dis: skill" not in rows
+
+
+def per_step(method: str, metric: str, errors: dict[str, float], member: int = 0) -> list[dict]:
+    """metrics_per_step.csv rows of two sims over three frames: the prediction off the truth by ``errors[sim]``."""
+    out = []
+    for sim, error in errors.items():
+        for tau in (1, 2, 3):
+            truth = NAN if metric == "rollout MSE" else 10.0 + tau
+            out.append({"scene": "slide", "method": method, "metric": metric, "sim": sim, "member": member,
+                        "tau": tau, "frame": 5 + tau, "time": 0.1 * tau, "truth": truth, "blown_up": False,
+                        "prediction": error if metric == "rollout MSE" else truth + error * (-1) ** tau,
+                        "truth_start": 10.0, "spread": 0.25, "diameter": 0.5})
+    return out
+
+
+def test_a_metrics_csv_of_the_evaluations_own_summary(repo):
+    from surrogate.evaluate import summarise
+    from surrogate.metrics.scores import Intervals
+    steps = [row for metric in ("rollout MSE", "Max Ht") for row in
+             per_step("graphdem", metric, {"a": 0.1, "b": 0.3})
+             + per_step("constant_velocity", metric, {"a": 0.8, "b": 0.8})
+             + per_step("dem_ensemble", metric, {"a": 0.2, "b": 0.2})
+             + per_step("dem_ensemble", metric, {"a": 0.4, "b": 0.4}, member=1)]
+    table = summarise(pd.DataFrame(steps), intervals=Intervals(samples=200, level=0.95, seed=0), units={"Max Ht": "m"})
+    csv = repo["root"] / "results" / "slide" / "metrics.csv"
+    table.assign(**dict(zip(COLUMNS[-8:], PROVENANCE, strict=True))).to_csv(csv, index=False)
+    write(repo)
+    _, rows = generated(repo["doc"])
+    read = pd.read_csv(csv).query("sim == 'all'").set_index(["metric", "method"])
+    methods = ["graphdem", "constant_velocity", "dem_ensemble"]
+
+    def cells(metric, column, interval, spec, unit=""):
+        return [f"{read.loc[(metric, m), column]:{spec}}{unit} [{read.loc[(metric, m), interval + '_ci_low']:{spec}}, "
+                f"{read.loc[(metric, m), interval + '_ci_high']:{spec}}]" for m in methods]
+
+    assert rows["rollout MSE (m²)"] == ["", *cells("rollout MSE", "mse", "mse", kinds.NUMBER)]
+    assert rows["Max Ht: Acc"] == ["12", *cells("Max Ht", "acc_percent", "acc", kinds.PERCENT, " %")]
+    assert rows["Max Ht: change error"] == ["", *cells("Max Ht", "change_error", "change_error", kinds.NUMBER)]
+    assert rows["Max Ht: skill"] == ["", *cells("Max Ht", "skill", "skill", kinds.SCORE)]
+    assert rows["rollout MSE: error in ensemble spreads"] == [
+        "", *(f"{read.loc[('rollout MSE', m), 'error_in_spreads']:{kinds.SCORE}}" for m in methods)]
 
 
 def test_the_stamp_names_the_csv_its_config_sha_commit_and_the_producing_code(repo):
