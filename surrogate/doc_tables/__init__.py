@@ -155,8 +155,11 @@ def write(outcomes: list[Outcome]) -> list[Path]:
     written = []
     for path in dict.fromkeys(o.block.document for o in outcomes if o.changed):
         text = path.read_bytes().decode("utf-8")
-        fresh = {b.start: b for b in blocks.find(path, text)}
-        bodies = {fresh[o.block.start]: o.body for o in outcomes if o.changed and o.block.document == path}
+        bodies = {o.block: o.body for o in outcomes if o.changed and o.block.document == path}
+        for block in bodies:
+            if text[block.start:block.end] != block.body:
+                raise ValueError(f"{block.where}: the file changed while its tables were generated; run graphdem "
+                                 "tables --write again")
         with atomic_path(path) as tmp:
             tmp.write_bytes(blocks.replace(text, bodies).encode("utf-8"))
         written.append(path)
