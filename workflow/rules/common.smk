@@ -475,13 +475,14 @@ def property_test_args(wildcards) -> list[str]:
 
 
 def evaluation_args(wildcards) -> list[str]:
-    """The split, protocols, rollouts and DEM ensemble of the evaluate stage."""
+    """The split, protocols, rollouts, DEM ensemble and bootstrap intervals of the evaluate stage."""
+    intervals = ["--intervals-json", _json(CFG["intervals"])]
     if is_scene(wildcards):
         ensemble = ["--ensemble", *ensemble_dirs(wildcards.name)] if ensemble_sims(wildcards) else []
         return ["--split", "test", "--history", str(history_length(wildcards)),
-                "--rollouts", f"results/{wildcards.name}/rollouts", *ensemble]
+                "--rollouts", f"results/{wildcards.name}/rollouts", *ensemble, *intervals]
     bench = CFG[wildcards.name]
-    return ["--split", bench["evaluate"]["split"], "--history", *(str(k) for k in bench["protocols"])]
+    return ["--split", bench["evaluate"]["split"], "--history", *(str(k) for k in bench["protocols"]), *intervals]
 
 
 # ---- cross-check ---------------------------------------------------------------------------------
