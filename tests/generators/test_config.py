@@ -255,3 +255,16 @@ def test_rollout_finetuning_is_the_benchmarks_default_scale_only_and_overridable
     with pytest.raises(config.ConfigError, match=r"'slide_small\.train\.finetune' = 'on' is not allowed; allowed: "
                                                  r"null or a mapping of epochs, lr, batch_size"):
         config.load({"slide_small": {"train": {"finetune": "on"}}})
+
+
+@pytest.mark.parametrize("value", [2.5, "two", -1, True])
+def test_ensemble_members_is_a_count_per_scale_and_anything_else_is_refused_by_key(value):
+    """The DEM ensemble's members per test sim: 2 at the ci scale, 5 at the default and paper scales, a user's
+    count (0: none) over either; a non-integer is refused, naming the key."""
+    for scale, members in (("ci", 2), ("default", 5), ("paper", 5)):
+        loaded = config.load({"scale": scale})
+        assert {loaded[name]["evaluate"]["ensemble_members"] for name in scenes.names()} == {members}
+    assert config.load({"scale": "ci", "shear": {"evaluate": {"ensemble_members": 0}}})["shear"]["evaluate"][
+        "ensemble_members"] == 0
+    with pytest.raises(config.ConfigError, match=r"config key 'slide\.evaluate\.ensemble_members' = "):
+        config.load({"slide": {"evaluate": {"ensemble_members": value}}})

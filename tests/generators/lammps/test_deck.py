@@ -96,3 +96,33 @@ def test_group_forces_are_averaged_over_the_frame_interval():
     assert deck.group_force_columns(_platen_setup(), "platen") == [f"f_groupforce[{k}]" for k in (4, 5, 6)]
     with pytest.raises(dem.UnsupportedSetup, match="force samples"):
         deck.record_deck(_platen_setup(force_samples=7))
+
+
+def test_a_perturbation_splits_the_window_at_its_frame_around_the_displacement(tmp_path):
+    """Frame 1 of 3 (50 steps apart, after a 100-step run-up): a run to it, the per-atom displacement of the moving
+    particle from one file per axis (atom id and 17 digits: exact), then the rest; the atom map the files need is
+    the only other line, and a deck without a perturbation has neither."""
+    moved = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0e-7 / 3, -2.5e-8, 1.0 / 7.0 * 1e-6]])   # 3 moves
+    setup = _setup(perturbation=dem.Perturbation(frame=1, displacement=moved))
+    text = deck.record_deck(setup)
+    assert text.splitlines()[-6:] == [
+        "run             50", "variable        perturb_x atomfile perturbation_x.txt",
+        "variable        perturb_y atomfile perturbation_y.txt",
+        "variable        perturb_z atomfile perturbation_z.txt",
+        "displace_atoms  moving move v_perturb_x v_perturb_y v_perturb_z units box", "run             50"]
+    assert "atom_modify     map array" in text and "atom_modify" not in deck.record_deck(_setup())
+    deck.write_perturbation(tmp_path, setup)
+    for a, axis in enumerate("xyz"):
+        lines = (tmp_path / f"perturbation_{axis}.txt").read_text().splitlines()
+        assert lines[1] == "1" and lines[2].split()[0] == "3" and float(lines[2].split()[1]) == moved[2, a]
+
+
+def test_a_2d_perturbation_moves_in_the_plane_only():
+    x = np.array([[0.0, 0.0], [0.1, 0.0]])
+    setup = _setup(particles=dem.Particles(x, np.full(2, 0.01), np.array([0, 1])), lower=np.full(2, -1.0),
+                   upper=np.full(2, 1.0), schedule=dem.Record(start=0, every=50, frames=4),
+                   perturbation=dem.Perturbation(frame=2, displacement=np.array([[0.0, 0.0], [1e-7, 2e-7]])))
+    window = deck.record_deck(setup).splitlines()[-5:]
+    assert window == ["run             100", "variable        perturb_x atomfile perturbation_x.txt",
+                      "variable        perturb_y atomfile perturbation_y.txt",
+                      "displace_atoms  moving move v_perturb_x v_perturb_y 0 units box", "run             50"]
