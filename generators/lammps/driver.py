@@ -5,7 +5,8 @@ the deck of a Record schedule and returns the recorded frames; ``read_raw`` read
 folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``) and 3D spheres,
 kinematic species (fixed, or moved at constant velocity by a Motion: ``fix move linear``), planar
 walls, per-species contact overrides, initial velocities, gravity tilted for an incline, viscous
-settling damping. Each run is one ``lmp`` process, or ``ranks`` MPI ranks of the same deck under
+settling damping, a perturbation after a recorded frame (a DEM ensemble member: the window's run split around
+``displace_atoms``). Each run is one ``lmp`` process, or ``ranks`` MPI ranks of the same deck under
 ``mpirun`` (runner.py).
 """
 

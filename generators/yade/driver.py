@@ -11,7 +11,7 @@ first recorded frame; two kinematic spheres never interact); a load Platen (one 
 axis only, pushed by a permanent force; contact forces of force groups averaged over force_samples steps
 of each frame interval); planar walls
 (``utils.wall``); initial velocities; per-species overrides that lower the friction (and keep or zero
-the rolling friction); settling with
+the rolling friction); a perturbation after a recorded frame (a DEM ensemble member); settling with
 Cundall's local damping or a viscous drag.
 
 Contact (YADE ViscElMat with Law2_ScGeom_ViscElPhys_Basic), matched to the LAMMPS driver's linear
