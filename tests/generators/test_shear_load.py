@@ -1,4 +1,4 @@
-"""The direct shear test under constant normal load, run for real in LAMMPS and in YADE (docs/shear-scene.md).
+"""The direct shear test under constant normal load, run for real in LAMMPS and in YADE (docs/scenes/shear.md).
 
 A half-size box (48 x 48 x 30 mm) of the default scale's soil spheres (radius 3.5-4.5 mm, about 150 soil
 spheres in five layers: the ci scale's spheres fill the box in two layers, too few for a shear band), one

@@ -10,11 +10,11 @@ load (a platen, the normal stress swept), and the slide's Graph-DEM rows when it
 switched on; the slide's and the meteorite's data and constant-velocity rows stayed as they were. The
 meteorite's Graph-DEM rows were re-pinned when its contact correction was switched on (data and constant
 velocity unchanged), and so were the shear's; the meteorite's and then the shear's again when each stopped
-training with pushforward (docs/meteorite-scene.md and docs/shear-scene.md, Training; data and constant
+training with pushforward (docs/scenes/meteorite.md and docs/scenes/shear.md, Training; data and constant
 velocity unchanged). The `Through wall` rows (a plausibility measure added later) were added to the pin
 from a rerun of the evaluation on a ci run of the pinned commit; every row pinned before agreed with that rerun.
 The meteorite's Graph-DEM rows were re-pinned when it started drawing its training samples by activity
-(`train.activity_weight`, docs/meteorite-scene.md); its data and every other row stayed as they were."""
+(`train.activity_weight`, docs/scenes/meteorite.md); its data and every other row stayed as they were."""
 
 import json
 import math
