@@ -81,13 +81,9 @@ PROMISES = {
          "reruns": {"sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate"}},
     "results/slide/vtk": {"builds": ({"slide"}, "export")},
     "results/slide/metrics.csv --resources gpus=1 --config device=cuda": SLIDE,
-    "results/slide/metrics.csv --resources gpus=4 --config device=cuda 'launch={launcher: torchrun, processes: 4}'":
-        SLIDE,
     "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
         {"tested_by": "tests/workflow/test_slurm.py"},
     "results/slide/seeds.csv --config seeds=3": {"builds": ({"slide"}, "train_seed")},
-    "results/slide/benchmark.csv": {"builds": ({"slide"}, "performance")},
-    "results/slide/stability.csv": {"builds": ({"slide"}, "stability")},
     "results/slide/benchmark.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
     "results/shear/benchmark.csv": {"builds": ({"shear"}, "performance")},
     "results/shear/stability.csv": {"builds": ({"shear"}, "stability")},
@@ -97,7 +93,6 @@ PROMISES = {
     "results/crosscheck.csv --config scale=ci":
         {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
     "results/crosscheck/slide_transfer.csv": {"builds": ({"slide", "crosscheck"}, "transfer")},
-    "results/crosscheck/slide_transfer.csv --config scale=ci": {"builds": ({"slide", "crosscheck"}, "transfer")},
     "results/slide_samer/metrics.csv --config solidgn_root=/path/to/solidgn":
         {"builds": ({"slide_samer"}, "import_solidgn")},
     "results/slide_samer/card.md --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer"}, "card")},
