@@ -10,12 +10,12 @@ it is the plain extrapolation ``p^{t+1} = 2 p^t - p^{t-1}``.
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
-from surrogate.rollout import correct_step, new_counts
-from surrogate.runtime import Runtime
+if TYPE_CHECKING:
+    from surrogate.runtime import Runtime
 
 
 def constant_velocity(position: np.ndarray, kinematic: np.ndarray, history: int, runtime: Runtime | None = None,
@@ -41,7 +41,11 @@ def constant_velocity(position: np.ndarray, kinematic: np.ndarray, history: int,
 
 def _corrected(truth: np.ndarray, kin: np.ndarray, history: int, runtime: Runtime,
                box: tuple[np.ndarray, np.ndarray] | None, radius: np.ndarray | None) -> np.ndarray:
-    """The extrapolation with the runtime's corrections after every frame (float64 throughout)."""
+    """The extrapolation with the runtime's corrections after every frame (float64 throughout). The rollout's
+    corrections are imported here: scoring stored files alone needs no model code."""
+    import torch
+
+    from surrogate.rollout import correct_step, new_counts
     if box is None:
         raise ValueError("a constant-velocity rollout with runtime.keep_in_domain or contact_correction needs the "
                          "data's box")
