@@ -252,22 +252,7 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     for path in tqdm(data_files(data), desc="evaluate", unit="sim", disable=not progress):
         traj = h5md.read(path)
         sim = load_sim(path, meta["stats"], props, traj, allow_other_scene)
-        if rollouts_dir is not None:
-            predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha, history)
-            if predicted.position.shape != traj.position.shape:
-                raise ValueError(f"{rollouts_dir}/{sim.id}.h5: shape {predicted.position.shape} differs from the "
-                                 f"sim's {traj.position.shape}")
-            pred, bad = np.asarray(predicted.position, np.float64), predicted.parameters.get("rollout_first_nonfinite")
-            bad = None if bad in (None, "null", -1) else int(bad)
-            seconds = float(predicted.parameters.get("rollout_seconds_per_frame", np.nan))
-            computed = max((traj.n_frames if bad is None else bad + 1) - history, 1)      # frames predicted
-            capped, dropped = (float(predicted.parameters.get(key, np.nan)) / computed
-                               for key in ("rollout_capped_receivers", "rollout_dropped_edges"))
-        else:
-            result = rollout(simulator, sim, runtime=runtime, given=history)
-            pred, bad = result.position, result.first_nonfinite
-            seconds = result.seconds / max(result.n_predicted, 1)
-            capped, dropped = (result.timing[key] / max(result.n_predicted, 1) for key in ("capped", "dropped"))
+        pred, bad, seconds, capped, dropped = _prediction(simulator, sim, traj, rollouts_dir, sha, history, runtime)
         truth = np.asarray(traj.position, np.float64)
         baseline = constant_velocity(truth, traj.kinematic, history, runtime, box, traj.radius)
         predictions, nonfinite = {MODEL: pred, BASELINE: baseline}, {MODEL: bad, BASELINE: None}
@@ -281,13 +266,7 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)
     table = summarise(steps, frames, intervals)
-    scene = table["scene"].iloc[0]
-    timing = [{"scene": scene, "method": MODEL, "metric": SECONDS, "sim": "all",
-               "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])), "n_sims": len(sims)}]
-    if cap is not None:
-        timing += [{"scene": scene, "method": MODEL, "metric": metric, "sim": "all",
-                    "mean_prediction": float(np.mean([getattr(s, field) for s in sims])), "n_sims": len(sims)}
-                   for metric, field in ((CAPPED, "capped_per_frame"), (DROPPED, "dropped_per_frame"))]
+    timing = _timing_rows(str(table["scene"].iloc[0]), sims, cap is not None)
     table = pd.concat([table, pd.DataFrame(timing).reindex(columns=table.columns)], ignore_index=True)
     configs = [{"model": m["model"], "train": m["train"]} for m in metas]
     recorded = {"split": split, "split_note": split_note, "history": int(history),
@@ -299,6 +278,39 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
         for key, value in recorded.items():
             df[key] = value
     return table, steps, sims
+
+
+def _prediction(simulator, sim, traj: h5md.Trajectory, rollouts_dir: Path | None, sha: str, history: int,
+                runtime: Runtime | None) -> tuple[np.ndarray, int | None, float, float, float]:
+    """Graph-DEM's positions of a sim, read from ``rollouts_dir`` (made by checkpoint ``sha``) or rolled out now,
+    with its first non-finite frame, seconds per predicted frame and the neighbour cap's counts per frame."""
+    if rollouts_dir is None:
+        result = rollout(simulator, sim, runtime=runtime, given=history)
+        n = max(result.n_predicted, 1)
+        return (result.position, result.first_nonfinite, result.seconds / n, result.timing["capped"] / n,
+                result.timing["dropped"] / n)
+    predicted = read_rollout(Path(rollouts_dir) / f"{sim.id}.h5", sha, history)
+    if predicted.position.shape != traj.position.shape:
+        raise ValueError(f"{rollouts_dir}/{sim.id}.h5: shape {predicted.position.shape} differs from the "
+                         f"sim's {traj.position.shape}")
+    bad = predicted.parameters.get("rollout_first_nonfinite")
+    bad = None if bad in (None, "null", -1) else int(bad)
+    computed = max((traj.n_frames if bad is None else bad + 1) - history, 1)      # frames predicted
+    capped, dropped = (float(predicted.parameters.get(key, np.nan)) / computed
+                       for key in ("rollout_capped_receivers", "rollout_dropped_edges"))
+    return (np.asarray(predicted.position, np.float64), bad,
+            float(predicted.parameters.get("rollout_seconds_per_frame", np.nan)), capped, dropped)
+
+
+def _timing_rows(scene: str, sims: list[Evaluated], capped: bool) -> list[dict]:
+    """Graph-DEM's seconds per predicted frame and, with a neighbour cap, its counts per frame (means over sims)."""
+    rows = [{"scene": scene, "method": MODEL, "metric": SECONDS, "sim": "all",
+             "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])), "n_sims": len(sims)}]
+    if capped:
+        rows += [{"scene": scene, "method": MODEL, "metric": metric, "sim": "all",
+                  "mean_prediction": float(np.mean([getattr(s, field) for s in sims])), "n_sims": len(sims)}
+                 for metric, field in ((CAPPED, "capped_per_frame"), (DROPPED, "dropped_per_frame"))]
+    return rows
 
 
 def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
