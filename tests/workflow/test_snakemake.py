@@ -452,7 +452,7 @@ def test_scene_outputs(ci_results, scene, dim, n_types, metrics):
     for j in range(2):
         assert sorted(p.stem for p in (res / "ensemble" / f"m{j}" / "sims").glob("*.h5")) == scored
     steps = pd.read_csv(res / "metrics_per_step.csv")
-    assert set(steps["method"]) == {"graphdem", "constant_velocity", "dem_ensemble"}
+    assert set(steps["method"]) == {"graphdem", "constant_velocity", "dem_ensemble", "dem_ensemble_mean"}
     overall = table[table["sim"] == "all"].set_index(["method", "metric"])
     # plausibility: the DEM's own overlaps stay below its blow-up limit, and no DEM particle leaves the box or
     # passes a wall (the shear's box and platen; the meteorite has no wall particle)
