@@ -14,7 +14,11 @@ training with pushforward (docs/scenes/meteorite.md and docs/scenes/shear.md, Tr
 velocity unchanged). The `Through wall` rows (a plausibility measure added later) were added to the pin
 from a rerun of the evaluation on a ci run of the pinned commit; every row pinned before agreed with that rerun.
 The meteorite's Graph-DEM rows were re-pinned when it started drawing its training samples by activity
-(`train.activity_weight`, docs/scenes/meteorite.md); its data and every other row stayed as they were."""
+(`train.activity_weight`, docs/scenes/meteorite.md); its data and every other row stayed as they were. metrics.csv
+was re-pinned when the yardstick changed (docs/surrogate.md, Evaluation): constant velocity runs under the model's
+runtime (clamp, contact correction), the DEM ensemble's members start at the last given frame, undefined values are
+left out alike on both sides, and every figure gained its change error, skill, spreads and intervals; the sweeps,
+packings and positions stayed as they were, bit for bit."""
 
 import json
 import math
