@@ -30,7 +30,8 @@ NUMBER, PERCENT, SCORE, SPREAD = ".3g", ".1f", ".2f", ".2g"
 BLOWN_UP, UNDEFINED = "blown up", "undefined"
 
 # The code behind each CSV (module docstring): the evaluation's, the performance stage's, the benchmark card's.
-EVALUATION = ("surrogate/evaluate.py", "surrogate/metrics/*.py", "surrogate/baseline.py", "surrogate/rollout.py")
+EVALUATION = ("surrogate/evaluate.py", "surrogate/summary.py", "surrogate/stored.py", "surrogate/metrics/*.py",
+              "surrogate/baseline.py", "surrogate/rollout.py")
 PERFORMANCE = ("surrogate/performance.py", "surrogate/batched.py", "surrogate/runtime.py", "generators/engine.py",
                *EVALUATION)
 CARD = ("surrogate/card.py", "surrogate/seeds.py", "surrogate/ensemble.py", *EVALUATION)
@@ -129,6 +130,52 @@ def metrics(table: pd.DataFrame) -> str:
     return markdown(["metric", "DEM truth (mean)", *(METHODS.get(m, m) for m in methods)], rows)
 
 
+# The summary's figures per metric: its error (the MSE, the change error, or the compared value such as Dis).
+ERROR = (Quantity("mse", "", NUMBER), Quantity("change_error", "", NUMBER), Quantity("mean_prediction", "", NUMBER))
+SKILL = Quantity("skill", "", SCORE)
+SPREADS = Quantity("error_in_spreads", "", SCORE)
+ACC = Quantity("acc_percent", "", PERCENT, " %", "acc")
+
+
+def error_of(row: dict) -> Quantity:
+    """A summary row's error figure: the rollout MSE, a scene metric's change error (its row names the change's
+    scale) or a compared metric's value (Dis)."""
+    if finite(row.get("mse")):
+        return ERROR[0]
+    return ERROR[1] if isinstance(row.get("change_scale_kind"), str) else ERROR[2]
+
+
+def summary(table: pd.DataFrame) -> str:
+    """results/<scene>/metrics.csv in brief (the README's table): a row per metric that has an error figure (the
+    rollout MSE, each scene metric's change error, each compared metric), with Graph-DEM's error, the DEM
+    ensemble members' error, Graph-DEM's skill against constant velocity, its error in ensemble spreads, and
+    the article's Acc of Graph-DEM and of constant velocity; intervals where the CSV has them."""
+    from surrogate.evaluate import BASELINE, CAPPED, DROPPED, ENSEMBLE, MODEL, SECONDS
+    from surrogate.metrics import plausibility, units
+    skipped = {SECONDS, CAPPED, DROPPED, *plausibility.AGGREGATE}       # timings; plausibility: the metrics table
+    overall = table[table["sim"] == "all"]
+    unit = units()
+    ks = list(dict.fromkeys(overall["history"])) if "history" in overall else [None]
+    rows = []
+    for k in ks:
+        here = overall if k is None else overall[overall["history"] == k]
+        for metric in dict.fromkeys(here["metric"]):
+            by_method = {r["method"]: r for r in here[here["metric"] == metric].to_dict("records")}
+            model = by_method.get(MODEL)
+            if model is None or metric in skipped:
+                continue
+            error = error_of(model)
+            label = f"{metric} ({unit.get(metric, '').replace('$^2$', '²') or '-'})" + (
+                f", K = {k}" if len(ks) > 1 else "")
+            rows.append([label, error.cell(model), error.cell(by_method.get(ENSEMBLE)), SKILL.cell(model),
+                         SPREADS.cell(model) if finite(model.get("error_in_spreads")) else "",
+                         ACC.cell(model) if finite(model.get("acc_percent")) else "",
+                         ACC.cell(by_method.get(BASELINE)) if finite(model.get("acc_percent")) else ""])
+    return markdown(["metric (unit)", "Graph-DEM error", "DEM member error", "skill vs constant velocity",
+                     "in DEM ensemble spreads", "Acc, article (Graph-DEM)", "Acc, article (constant velocity)"],
+                    rows)
+
+
 def speed(table: pd.DataFrame) -> str:
     """results/<scene>/benchmark.csv: a row per contender (the settling row left out): its kind, milliseconds per
     predicted frame, rollout MSE and speed-up over the DEM reference; the headline contender marked (main)."""
@@ -178,6 +225,7 @@ def _card_cell(row: dict) -> str:
 
 KINDS = {kind.name: kind for kind in (
     Kind("metrics", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, metrics),
+    Kind("summary", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, summary),
     Kind("speed", "{subject}/benchmark.csv", ("contender", "kind", "seconds_per_frame", "mse",
                                               "speedup_vs_reference"), PERFORMANCE, speed),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,

@@ -289,3 +289,24 @@ def test_the_repositorys_tables_are_current():
     """The check CI runs: no table of the README or docs is stale (never generated ones only warn)."""
     stale, _ = doc_tables.check(doc_tables.CODE_ROOT)
     assert stale == []
+
+
+def test_the_readmes_summary_gives_each_metrics_error_skill_and_spreads_from_the_csv():
+    from surrogate.evaluate import summarise
+    from surrogate.metrics.scores import Intervals
+    steps = [row for metric in ("rollout MSE", "Max Ht", "Max overlap") for row in
+             per_step("graphdem", metric, {"a": 0.1, "b": 0.3})
+             + per_step("constant_velocity", metric, {"a": 0.8, "b": 0.8})
+             + per_step("dem_ensemble", metric, {"a": 0.2, "b": 0.2})
+             + per_step("dem_ensemble", metric, {"a": 0.4, "b": 0.4}, member=1)]
+    table = summarise(pd.DataFrame(steps), intervals=Intervals(samples=200, level=0.95, seed=0), units={"Max Ht": "m"})
+    text = kinds.summary(table)
+    rows = {line.split(" | ")[0].strip("| "): line.strip("|").split(" | ")[1:] for line in text.splitlines()[2:]}
+    assert list(rows) == ["rollout MSE (m²)", "Max Ht (m)"]              # a plausibility measure is not summarised
+    model = table.query("sim == 'all' and method == 'graphdem'").set_index("metric")
+    error, member, skill, spreads, acc, _ = (c.strip() for c in rows["Max Ht (m)"])
+    low, mid, high = (model.at["Max Ht", c] for c in ("change_error_ci_low", "change_error", "change_error_ci_high"))
+    assert error == f"{mid:{kinds.NUMBER}} [{low:{kinds.NUMBER}}, {high:{kinds.NUMBER}}]"
+    assert member.startswith("0.3 ") and skill.startswith(f"{model.at['Max Ht', 'skill']:{kinds.SCORE}} [")
+    assert spreads == f"{model.at['Max Ht', 'error_in_spreads']:{kinds.SCORE}}" and acc.endswith("]")
+    assert rows["rollout MSE (m²)"][0].startswith(f"{model.at['rollout MSE', 'mse']:{kinds.NUMBER}} [")
