@@ -17,7 +17,7 @@ load time: ``--check`` reads only :data:`KINDS`' names and sources.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -108,25 +108,31 @@ def _methods(names: list[str], first: tuple[str, ...]) -> list[str]:
     return [m for m in first if m in names] + [m for m in names if m not in first]
 
 
+def by_metric(overall: pd.DataFrame) -> Iterator[tuple[object, bool, str, dict[str, dict]]]:
+    """(K, whether there are several K, metric, method -> row) for every metric of every protocol K of a
+    metrics.csv's ``sim = all`` rows, in the CSV's order."""
+    ks = list(dict.fromkeys(overall["history"])) if "history" in overall else [None]
+    for k in ks:
+        here = overall if k is None else overall[overall["history"] == k]
+        for metric in dict.fromkeys(here["metric"]):
+            yield k, len(ks) > 1, metric, {r["method"]: r for r in here[here["metric"] == metric].to_dict("records")}
+
+
 def metrics(table: pd.DataFrame) -> str:
     """results/<scene>/metrics.csv: a row per metric (its primary figure, then each :data:`EXTRA` figure it has)
     and protocol K where there are several; columns: the DEM truth's mean, then one per method."""
     from surrogate.evaluate import BASELINE, CAPPED, DROPPED, ENSEMBLE, MODEL, SECONDS
     overall = table[(table["sim"] == "all") & ~table["metric"].isin([SECONDS, CAPPED, DROPPED])]
     methods = _methods(list(overall["method"]), (MODEL, BASELINE, ENSEMBLE))
-    ks = list(dict.fromkeys(overall["history"])) if "history" in overall else [None]
     rows = []
-    for k in ks:
-        here = overall if k is None else overall[overall["history"] == k]
-        for metric in dict.fromkeys(here["metric"]):
-            by_method = {r["method"]: r for r in here[here["metric"] == metric].to_dict("records")}
-            has = [q for q in (*PRIMARY, *EXTRA) if any(finite(r.get(q.column)) for r in by_method.values())]
-            shown = [next((q for q in PRIMARY if q in has), PRIMARY[-1]), *(q for q in EXTRA if q in has)]
-            truth = next((r["mean_truth"] for r in by_method.values() if finite(r.get("mean_truth"))), None)
-            for i, quantity in enumerate(shown):
-                label = quantity.label.format(metric=metric) + (f" (K = {k})" if len(ks) > 1 else "")
-                truth_cell = f"{float(truth):{NUMBER}}" if i == 0 and truth is not None else ""
-                rows.append([label, truth_cell, *(quantity.cell(by_method.get(m)) for m in methods)])
+    for k, several, metric, by_method in by_metric(overall):
+        has = [q for q in (*PRIMARY, *EXTRA) if any(finite(r.get(q.column)) for r in by_method.values())]
+        shown = [next((q for q in PRIMARY if q in has), PRIMARY[-1]), *(q for q in EXTRA if q in has)]
+        truth = next((r["mean_truth"] for r in by_method.values() if finite(r.get("mean_truth"))), None)
+        for i, quantity in enumerate(shown):
+            label = quantity.label.format(metric=metric) + (f" (K = {k})" if several else "")
+            truth_cell = f"{float(truth):{NUMBER}}" if i == 0 and truth is not None else ""
+            rows.append([label, truth_cell, *(quantity.cell(by_method.get(m)) for m in methods)])
     return markdown(["metric", "DEM truth (mean)", *(METHODS.get(m, m) for m in methods)], rows)
 
 
@@ -155,22 +161,17 @@ def summary(table: pd.DataFrame) -> str:
     skipped = {SECONDS, CAPPED, DROPPED, *plausibility.AGGREGATE}       # timings; plausibility: the metrics table
     overall = table[table["sim"] == "all"]
     unit = units()
-    ks = list(dict.fromkeys(overall["history"])) if "history" in overall else [None]
     rows = []
-    for k in ks:
-        here = overall if k is None else overall[overall["history"] == k]
-        for metric in dict.fromkeys(here["metric"]):
-            by_method = {r["method"]: r for r in here[here["metric"] == metric].to_dict("records")}
-            model = by_method.get(MODEL)
-            if model is None or metric in skipped:
-                continue
-            error = error_of(model)
-            label = f"{metric} ({unit.get(metric, '').replace('$^2$', '²') or '-'})" + (
-                f", K = {k}" if len(ks) > 1 else "")
-            rows.append([label, error.cell(model), error.cell(by_method.get(ENSEMBLE)), SKILL.cell(model),
-                         SPREADS.cell(model) if finite(model.get("error_in_spreads")) else "",
-                         ACC.cell(model) if finite(model.get("acc_percent")) else "",
-                         ACC.cell(by_method.get(BASELINE)) if finite(model.get("acc_percent")) else ""])
+    for k, several, metric, by_method in by_metric(overall):
+        model = by_method.get(MODEL)
+        if model is None or metric in skipped:
+            continue
+        error = error_of(model)
+        label = f"{metric} ({unit.get(metric, '').replace('$^2$', '²') or '-'})" + (f", K = {k}" if several else "")
+        rows.append([label, error.cell(model), error.cell(by_method.get(ENSEMBLE)), SKILL.cell(model),
+                     SPREADS.cell(model) if finite(model.get("error_in_spreads")) else "",
+                     ACC.cell(model) if finite(model.get("acc_percent")) else "",
+                     ACC.cell(by_method.get(BASELINE)) if finite(model.get("acc_percent")) else ""])
     return markdown(["metric (unit)", "Graph-DEM error", "DEM member error", "skill vs constant velocity",
                      "in DEM ensemble spreads", "Acc, article (Graph-DEM)", "Acc, article (constant velocity)"],
                     rows)
