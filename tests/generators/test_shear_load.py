@@ -5,7 +5,7 @@ spheres in five layers: the ci scale's spheres fill the box in two layers, too f
 packing settled in LAMMPS and sheared in both engines at the softest modulus and the two ends of the
 normal stress range, 6 mm of shear (1/8 of the box) in 12 frames after 10 ms of loading (the ci
 scale's); LAMMPS also at the stiffest modulus. Both engines are deterministic per thread count, so the
-figures (printed by test_report, run with -s) repeat.
+figures (printed by the peak-ratio test, run with -s) repeat.
 """
 
 import numpy as np
@@ -113,13 +113,20 @@ def test_a_stiffer_soil_mobilises_more_shear_stress(runs):
     assert stiff > 1.1 * soft
 
 
-def test_report(runs, capsys):
-    """Not a check: the measured figures (run with -s to see them)."""
+# A granular soil's peak stress ratio tau / sigma_n is a mobilised friction: above a loose packing's
+# (0.1) and below tan 60 deg (a friction angle no sand reaches).
+PEAK_RATIO_RANGE = (0.1, 1.73)
+
+
+def test_every_runs_peak_stress_ratio_is_a_friction_a_soil_can_mobilise(runs, capsys):
+    """Every run's peak tau / sigma_n lies in :data:`PEAK_RATIO_RANGE`; the measured figures are printed (run
+    with -s to see them)."""
     with capsys.disabled():
         for name in (*ENGINES, "lammps_stiff"):
             for row, traj in runs[name]:
                 o = traj.observables
                 peak = shear.peak_shear_stress(o["shear_stress"])
+                assert PEAK_RATIO_RANGE[0] < peak / row["normal_stress"] < PEAK_RATIO_RANGE[1], (name, row["id"])
                 print(f"{name} E={row['young']:g} sigma_n={row['normal_stress']:g}: mean normal stress "
                       f"{o['normal_stress'].mean():.1f} Pa, peak tau {peak:.1f} Pa, "
                       f"ratio {peak / row['normal_stress']:.3f}, mean tau {o['shear_stress'][1:].mean():.1f} Pa, "
