@@ -14,7 +14,7 @@ import pickle
 from pathlib import Path
 
 from generators import config as gconfig
-from generators import scenes
+from generators import engines, scenes
 
 
 def json_arg(text: str) -> dict:
@@ -193,13 +193,13 @@ def cmd_crosscheck(args) -> None:
 
     from generators import crosscheck
     from generators.atomic import atomic_path
+    runs = {name: getattr(args, name) for name in engines.NAMES if getattr(args, name, None)}
     if args.combine:
         table = pd.concat([pd.read_csv(p) for p in args.combine], ignore_index=True)
-    elif args.scene is None or not (args.lammps and args.yade):
-        raise SystemExit("graphdem crosscheck: give --scene, --lammps FILES and --yade FILES, or --combine TABLES")
+    elif args.scene is None or len(runs) < 2:
+        raise SystemExit(f"graphdem crosscheck: give --scene, {_engine_flags()}, or --combine TABLES")
     else:
-        table = crosscheck.compare(args.scene, {"lammps": args.lammps, "yade": args.yade}, args.tolerance,
-                                   args.body_displacement, args.chaos)
+        table = crosscheck.compare(args.scene, runs, args.tolerance, args.body_displacement, args.chaos)
     with atomic_path(args.out) as tmp:
         table.to_csv(tmp, index=False)
     print(table.to_string(index=False))
@@ -229,29 +229,33 @@ def _ranks_option(p: argparse.ArgumentParser) -> None:
                         "take 1 only")
 
 
-def add_commands(sub) -> None:
-    """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
-    names = scenes.names()
+def _add_config(sub, names: list[str]) -> None:
     p = sub.add_parser("config", help="print the resolved, validated configuration",
                        description="The package defaults with the chosen scale preset, --config files and --set keys "
                                    "on top, validated against the schema: what the workflow runs with.")
     config_options(p)
     p.set_defaults(func=cmd_config)
 
+
+def _add_sweep(sub, names: list[str]) -> None:
     p = sub.add_parser("sweep", help="write the sweep table (one row per simulation)")
     p.add_argument("--scene", choices=names, required=True)
     p.add_argument("--config-json", type=json_arg, required=True, help="the scene's resolved config section")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.set_defaults(func=cmd_sweep)
 
+
+def _add_prepare(sub, names: list[str]) -> None:
     p = sub.add_parser("prepare", help="settle one packing under gravity (shared by many sims)")
     p.add_argument("--scene", choices=names, required=True)
-    p.add_argument("--engine", choices=("lammps", "yade"), required=True, help="the engine that settles it")
+    p.add_argument("--engine", choices=engines.names(), required=True, help="the engine that settles it")
     p.add_argument("--params", type=json_arg, required=True, help="packing parameters (JSON)")
     p.add_argument("--out", type=Path, required=True, help="packing folder to write")
     _ranks_option(p)
     p.set_defaults(func=cmd_prepare)
 
+
+def _add_simulate(sub, names: list[str]) -> None:
     p = sub.add_parser("simulate", help="run one simulation of the sweep with the DEM engine")
     p.add_argument("--scene", choices=names, required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="the sim's sweep row (JSON)")
@@ -260,12 +264,16 @@ def add_commands(sub) -> None:
     _ranks_option(p)
     p.set_defaults(func=cmd_simulate)
 
+
+def _add_convert(sub, names: list[str]) -> None:
     p = sub.add_parser("convert", help="convert a raw engine output folder to H5MD")
     p.add_argument("--raw", type=Path, required=True,
                    help="a simulate stage's raw folder (its run.json names the scene and the engine)")
     p.add_argument("--out", type=Path, required=True, help="H5MD file to write")
     p.set_defaults(func=cmd_convert)
 
+
+def _add_stability_dem(sub, names: list[str]) -> None:
     p = sub.add_parser("stability-dem", help="run one sim at multiples of the stable DEM time step; report blow-ups",
                        description="Stress test of the DEM: the sim of --sim run with dt = f x the stable limit "
                                    "for every f of --factors, through the same blow-up detectors as the dataset "
@@ -278,6 +286,8 @@ def add_commands(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="CSV report")
     p.set_defaults(func=cmd_stability_dem)
 
+
+def _add_restitution(sub, names: list[str]) -> None:
     p = sub.add_parser("restitution", help="measure a scene's two-sphere restitution at chosen DEM time steps",
                        description="Collide two spheres of the scene's material head-on in each engine, at each "
                                    "--dt-safety x the scene's stable limit, for its smallest and its nominal sphere, "
@@ -289,7 +299,8 @@ def add_commands(sub) -> None:
     p.add_argument("--scene", choices=names, required=True)
     p.add_argument("--dt-safety", type=float, nargs="+", metavar="F",
                    help="time steps in units of the stable limit (default: the scene's configured one)")
-    p.add_argument("--engines", nargs="+", choices=("lammps", "yade"), default=["yade", "lammps"])
+    p.add_argument("--engines", nargs="+", choices=engines.names(), default=engines.names(),
+                   help="the engines to measure, in this order (default: every registered engine)")
     p.add_argument("--phases", type=positive_int, default=13, metavar="N", help="impact phases per step (default 13)")
     p.add_argument("--tolerance", type=float, default=0.02,
                    help="largest relative error that passes (default 0.02, the design's 2 %%)")
@@ -297,6 +308,8 @@ def add_commands(sub) -> None:
     config_options(p)
     p.set_defaults(func=cmd_restitution)
 
+
+def _add_physics(sub, names: list[str]) -> None:
     p = sub.add_parser("physics", help="check a scene's DEM data against published physics (table and plot)",
                        description="The scene's own physics check on its sims, e.g. the column collapse's runout "
                                    "against the aspect ratio beside the published laws (docs/collapse-scene.md).")
@@ -306,14 +319,22 @@ def add_commands(sub) -> None:
     p.add_argument("--plot", type=Path, required=True, help="PNG to write")
     p.set_defaults(func=cmd_physics)
 
-    p = sub.add_parser("crosscheck", help="compare a scene's metrics over the same sims run in LAMMPS and in YADE",
-                       description="One row per scene metric (its value at each sim's last frame): both engines' "
-                                   "mean and standard deviation over the sims, their relative difference and "
-                                   "pass/fail against the larger of --tolerance and the combined standard error "
-                                   "(docs/crosscheck.md). With --combine, stack finished tables instead.")
-    p.add_argument("--scene", choices=names, help="the scene (with --lammps and --yade)")
-    p.add_argument("--lammps", type=Path, nargs="+", help="the sims run in LAMMPS (H5MD)")
-    p.add_argument("--yade", type=Path, nargs="+", help="the same sims run in YADE (H5MD)")
+
+def _engine_flags() -> str:
+    """The cross-check's options of the registered engines, in words: ``--a FILES and --b FILES``."""
+    return " and ".join(f"--{name} FILES" for name in engines.NAMES)
+
+
+def _add_crosscheck(sub, names: list[str]) -> None:
+    p = sub.add_parser("crosscheck", help="compare a scene's metrics over the same sims run in each engine",
+                       description="One row per scene metric and pair of engines (its value at each sim's last "
+                                   "frame): both engines' mean and standard deviation over the sims, their relative "
+                                   "difference and pass/fail against the larger of --tolerance and the combined "
+                                   "standard error (docs/crosscheck.md). With --combine, stack finished tables "
+                                   "instead.")
+    p.add_argument("--scene", choices=names, help=f"the scene (with {' and '.join('--' + e for e in engines.NAMES)})")
+    for name in engines.NAMES:
+        p.add_argument(f"--{name}", type=Path, nargs="+", help=f"the sims run in {name.upper()} (H5MD)")
     p.add_argument("--chaos", type=Path, nargs="+",
                    help="the same sims rerun by one of the engines from perturbed packings (the DEM's own chaos)")
     p.add_argument("--tolerance", type=float, default=0.05, help="relative tolerance on each metric's mean")
@@ -322,17 +343,21 @@ def add_commands(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.set_defaults(func=cmd_crosscheck)
 
+
+def _add_transfer(sub, names: list[str]) -> None:
     p = sub.add_parser("transfer", help="a model's rollout MSE on its own engine's test sims beside the other's",
                        description="Stack two `graphdem evaluate` tables of one checkpoint: on the test sims of the "
                                    "engine it was trained on (--same) and on the same rows run in the other engine "
                                    "(--other).")
     p.add_argument("--same", type=Path, required=True, help="metrics.csv on the training engine's test sims")
     p.add_argument("--other", type=Path, required=True, help="metrics.csv on the other engine's test sims")
-    p.add_argument("--trained-on", choices=("lammps", "yade"), required=True)
-    p.add_argument("--other-engine", choices=("lammps", "yade"), required=True)
+    p.add_argument("--trained-on", choices=engines.names(), required=True)
+    p.add_argument("--other-engine", choices=engines.names(), required=True)
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.set_defaults(func=cmd_transfer)
 
+
+def _add_import_solidgn(sub, names: list[str]) -> None:
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "
                                    "trajectories) into DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are "
@@ -344,6 +369,8 @@ def add_commands(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_import_solidgn)
 
+
+def _add_export(sub, names: list[str]) -> None:
     p = sub.add_parser("export", help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)",
                        description="Write TRAJECTORY (an H5MD sim or Graph-DEM rollout) as the ParaView time "
                                    "series --out NAME.pvd: one .vtu per exported frame in the folder NAME/ beside "
@@ -362,9 +389,24 @@ def add_commands(sub) -> None:
                    help="export every K-th recorded frame from the first (default 1: all)")
     p.set_defaults(func=cmd_export)
 
+
+def _add_inspect(sub, names: list[str]) -> None:
     p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
     p.set_defaults(func=cmd_inspect)
+
+
+#: the generators' subcommands in the order `graphdem --help` lists them, each added by its function
+COMMANDS = (_add_config, _add_sweep, _add_prepare, _add_simulate, _add_convert, _add_stability_dem, _add_restitution,
+            _add_physics, _add_crosscheck, _add_transfer, _add_import_solidgn, _add_export, _add_inspect)
+
+
+def add_commands(sub) -> None:
+    """Add the generators' subcommands to the `graphdem` subparsers ``sub`` (scene and engine choices from their
+    registries)."""
+    names = scenes.names()
+    for add in COMMANDS:
+        add(sub, names)
 
 
 #: the argparse destinations a subcommand writes (files, or folders it writes files into); every other path is read
@@ -393,11 +435,9 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 
 def errors() -> tuple[type[Exception], ...]:
-    """The generators' errors that `graphdem` reports as one line (exit status 1)."""
+    """The generators' errors that `graphdem` reports as one line (exit status 1), every registered engine
+    driver's own (its ``ERRORS``) among them."""
     from generators import blowup, contact, dem, export, h5md, record
-    from generators.lammps import io as lammps_io
-    from generators.lammps import runner as lammps_runner
-    from generators.yade import runner as yade_runner
     return (gconfig.ConfigError, h5md.H5MDError, export.ExportError, blowup.BlowUp, contact.UnstableTimeStep,
-            dem.UnsupportedSetup, record.RecordError, lammps_runner.LammpsError, lammps_runner.MpiMismatch,
-            lammps_io.LammpsOutputError, yade_runner.YadeError, pickle.UnpicklingError, FileNotFoundError, ValueError)
+            dem.UnsupportedSetup, record.RecordError, *engines.errors(), pickle.UnpicklingError, FileNotFoundError,
+            ValueError)

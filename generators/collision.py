@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from generators import contact, dem, engine
+from generators import contact, dem, engines
 
 
 def collision_setup(c: dem.Contact, radius: float, density: float, dim: int, dt: float, speed: float) -> dem.Setup:
@@ -41,7 +41,7 @@ def restitution(engine_name: str, c: dem.Contact, radius: float, density: float,
                 speed: float, workdir: Path) -> float:
     """Rebound over impact speed of the collision, measured by ``engine_name``'s driver."""
     setup = collision_setup(c, radius, density, dim, dt, speed)
-    frames, _ = engine.driver(engine_name).record(setup, Path(workdir))
+    frames, _ = engines.driver(engine_name).record(setup, Path(workdir))
     x = np.asarray(frames.position, np.float64)[:, :, 0]
     elapsed = float(frames.time[1] - frames.time[0])
     rebound = ((x[1, 1] - x[1, 0]) - (x[0, 1] - x[0, 0])) / elapsed

@@ -21,12 +21,11 @@ from typing import Any
 import jsonschema
 import yaml
 
+from generators import engines, property_test, scenes
+from generators.errors import ConfigError
+
 DEFAULTS = resources.files("generators").joinpath("defaults")
 SCENES_DIR = resources.files("generators").joinpath("scenes")
-
-
-class ConfigError(ValueError):
-    """A configuration key is unknown, of the wrong type or out of range."""
 
 
 def deep_update(base: dict, override: dict) -> dict:
@@ -178,7 +177,6 @@ def _yaml(node) -> Any:
 
 @functools.cache
 def _defaults() -> dict:
-    from generators import scenes
     config = _yaml(DEFAULTS.joinpath("default.yaml"))
     for name in scenes.names():
         config[name] = _yaml(SCENES_DIR.joinpath(f"{name}.yaml"))
@@ -187,9 +185,10 @@ def _defaults() -> dict:
 
 @functools.cache
 def schema() -> dict:
-    """The root schema with every registered scene's fragment under ``properties.<scene>``."""
-    from generators import scenes
+    """The root schema with every registered scene's fragment under ``properties.<scene>`` and the registered
+    engines (generators/engines.py) as the choices of each scene's ``engine``."""
     root = _yaml(DEFAULTS.joinpath("schema.yaml"))
+    root["$defs"]["dem_scene"]["properties"]["engine"]["enum"] = engines.names()
     for name in scenes.names():
         root["properties"][name] = _yaml(SCENES_DIR.joinpath(f"{name}.schema.yaml"))
         root["required"].append(name)
@@ -241,7 +240,6 @@ def _raise_errors(root: dict, value: Any, prefix: tuple[str, ...] = ()) -> None:
 
 
 def _check_semantics(config: dict) -> None:
-    from generators import property_test, scenes
     launch = config["launch"]
     if launch["launcher"] == "plain" and launch["processes"] > 1:
         raise ConfigError(f"config key 'launch.processes' = {launch['processes']} needs 'launch.launcher' = "
@@ -290,14 +288,11 @@ def _check_size(name: str, scene, cfg: dict, limit: int) -> None:
 
 
 def _check_ranks(name: str, ranks: int) -> None:
-    """More than one MPI rank needs OpenMPI's launcher (refused here, before anything runs)."""
-    if ranks == 1:
-        return
-    from generators.lammps import runner
-    if runner.mpirun_path() is None:
-        raise ConfigError(f"config key '{name}.ranks' = {ranks} runs LAMMPS under `mpirun -np {ranks}`, and mpirun is "
-                          f"not on PATH (Debian's openmpi-bin, installed with lammps; or set {runner.MPIRUN_ENV} to "
-                          f"it); allowed without it: 1")
+    """More ranks than one must be runnable by every engine taking MPI ranks (refused here, before anything
+    runs; generators/engines.py)."""
+    problem = engines.ranks_problem(ranks)
+    if problem:
+        raise ConfigError(f"config key '{name}.ranks' = {ranks} {problem}")
 
 
 def _check_contenders(name: str, cfg: dict) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from generators import engine, h5md, record, scenes
+from generators import engines, h5md, record, scenes
 
 
 def trajectory(raw_dir: Path) -> h5md.Trajectory:
@@ -16,7 +16,7 @@ def trajectory(raw_dir: Path) -> h5md.Trajectory:
     if not isinstance(rec, record.SimRecord):
         raise record.RecordError(f"{raw_dir}: a {rec.kind} record, not a simulation's")
     scene = scenes.get(rec.scene)
-    raw = engine.driver(rec.run.engine).read_raw(raw_dir, rec.dt)
+    raw = engines.driver(rec.run.engine).read_raw(raw_dir, rec.dt)
     species = np.asarray(raw["species"])
     kinematic = np.isin(species, scene.kinematic_species)
     if "recorded" in raw and not np.all(raw["recorded"][~kinematic]):

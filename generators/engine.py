@@ -1,34 +1,25 @@
 """Run a scene in an engine: the prepare and simulate stages for every scene and every engine.
 
-The scene describes (generators/scene.py), the engine's driver runs (generators/<engine>/driver.py),
-and this module does what every run shares: atomic output folders, the settled packing's table, the
-blow-up checks (non-finite values, escapes, overlaps, energy gain; generators/blowup.py) and the typed
-run record (generators/record.py).
+The scene describes (generators/scene.py), the engine's driver runs (generators/<engine>/driver.py, found
+through the registry generators/engines.py), and this module does what every run shares: atomic output
+folders, the settled packing's table, the blow-up checks (non-finite values, escapes, overlaps, energy gain;
+generators/blowup.py) and the typed run record (generators/record.py).
 """
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pandas as pd
 
 from generators import blowup, dem, ensemble, record
 from generators.atomic import atomic_path
+from generators.engines import driver
 from generators.scene import Scene
 
-DRIVERS = {"lammps": "generators.lammps.driver", "yade": "generators.yade.driver"}
 PACKING_FILE = "packing.csv"
 AXES = "xyz"
-
-
-def driver(name: str) -> ModuleType:
-    """The driver module of engine ``name`` (settle, record, read_raw, CONTACT_MODEL)."""
-    if name not in DRIVERS:
-        raise ValueError(f"unknown engine {name!r}; known: {', '.join(DRIVERS)}")
-    return importlib.import_module(DRIVERS[name])
 
 
 def write_packing(path: Path, particles: dem.Particles) -> None:

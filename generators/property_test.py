@@ -13,7 +13,7 @@ it was not trained on, and the DEM reruns are sims it never saw.
 
 from __future__ import annotations
 
-from generators.config import ConfigError
+from generators.errors import ConfigError
 
 
 def values(section: str, cfg: dict) -> list[float]:

@@ -7,7 +7,8 @@ them; every stage iterates the registry and no other file names a scene.
 
 What a scene provides:
 
-- identity: ``name``, ``dim``, ``species`` (id -> name), ``kinematic_species``, ``engines`` it runs on;
+- identity: ``name``, ``dim``, ``species`` (id -> name), ``kinematic_species``; ``engines`` it runs on is
+  every registered engine (generators/engines.py), no scene names one;
 - the sweep: :meth:`sweep_size` and :meth:`draw` (the swept values of sim ``i``; every other physical
   key of the section goes into each sweep row), :meth:`packings` (whose parameters are the keys
   :meth:`settle_setup` reads, derived by :meth:`packing_params`);
@@ -28,7 +29,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from generators import dem
+from generators import dem, engines
+from generators.errors import ConfigError
 from generators.packing import packing_key
 
 # How an engine runs, not what it computes: never in a sweep row, a packing's key or the sweep stage's
@@ -70,7 +72,6 @@ class Scene(ABC):
     dim: ClassVar[int]
     species: ClassVar[dict[int, str]]
     kinematic_species: ClassVar[tuple[int, ...]]
-    engines: ClassVar[tuple[str, ...]]
     metrics: ClassVar[type]
 
     # ---- sweep ---------------------------------------------------------------------------------
@@ -188,6 +189,12 @@ class Scene(ABC):
         raise ValueError(f"the {self.name} scene has no physics check; scenes with one: {', '.join(have) or 'none'}")
 
     @property
+    def engines(self) -> tuple[str, ...]:
+        """The engines that run the scene: every registered one (generators/engines.py). A driver refuses by name
+        (dem.UnsupportedSetup) a feature of the scene's Setups it cannot run; no scene names an engine."""
+        return tuple(engines.NAMES)
+
+    @property
     def kinematic_names(self) -> list[str]:
         return [self.species[s] for s in self.kinematic_species]
 
@@ -206,7 +213,6 @@ def lattice_count(measure: float, r_max: float, dim: int) -> float:
 
 def check_range(section: str, key: str, value) -> None:
     """Refuse a [min, max] pair whose min exceeds its max (``key`` below the config section ``section``)."""
-    from generators.config import ConfigError
     if isinstance(value, list) and len(value) == 2 and value[0] > value[1]:
         raise ConfigError(f"config key '{section}.{key}' = {value} must be [min, max] with min <= max")
 

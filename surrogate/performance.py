@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from generators import blowup, convert, engine, h5md, scenes
+from generators import blowup, convert, engine, engines, h5md, scenes
 from surrogate import checkpoint, devices
 from surrogate import runtime as rt
 from surrogate.batched import rollout_batch
@@ -87,10 +87,9 @@ def dem_row(row: dict, variant: dict) -> dict:
 
 
 def execution(variant: dict, engine_name: str) -> tuple[int, int]:
-    """(MPI ranks, threads per process) of a DEM contender on ``cores`` cores: LAMMPS takes more cores
-    as MPI ranks, YADE as its own threads."""
-    cores = int(variant.get("cores", 1))
-    return (cores, 1) if engine_name == "lammps" else (1, cores)
+    """(MPI ranks, threads per process) of a DEM contender on ``cores`` cores: as MPI ranks or as threads of
+    one process, as the engine's driver takes them (generators/engines.py; LAMMPS: ranks, YADE: threads)."""
+    return engines.execution(engine_name, int(variant.get("cores", 1)))
 
 
 def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packings: list[Path],

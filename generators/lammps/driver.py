@@ -22,6 +22,17 @@ from generators.lammps import deck, io, runner
 from generators.record import EngineRun
 
 CONTACT_MODEL = deck.CONTACT_MODEL
+PARALLEL = "ranks"          # more cores: MPI ranks of the same deck under mpirun (generators/engines.py)
+ERRORS = (runner.LammpsError, runner.MpiMismatch, io.LammpsOutputError)
+
+
+def ranks_problem(ranks: int) -> str | None:
+    """Why ``ranks`` MPI ranks cannot run here (no mpirun on PATH), said after the config key; None where they
+    can."""
+    if ranks == 1 or runner.mpirun_path() is not None:
+        return None
+    return (f"runs LAMMPS under `mpirun -np {ranks}`, and mpirun is not on PATH (Debian's openmpi-bin, installed "
+            f"with lammps; or set {runner.MPIRUN_ENV} to it); allowed without it: 1")
 
 
 def _engine_run(run: EngineRun, log: Path, window_runs: int = 1) -> EngineRun:

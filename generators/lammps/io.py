@@ -1,4 +1,4 @@
-"""LAMMPS file formats: data files in, `dump custom` and log files out."""
+"""LAMMPS output formats: `dump custom` and log files (data files in: generators/lammps/deck.py)."""
 
 from __future__ import annotations
 
@@ -6,24 +6,11 @@ import io
 import re
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 
 class LammpsOutputError(ValueError):
     """A LAMMPS output file is missing, truncated or inconsistent."""
-
-
-def write_data(path: Path, xy: np.ndarray, radius: np.ndarray, types: np.ndarray,
-               lower: tuple[float, float], upper: tuple[float, float], n_types: int,
-               title: str) -> None:
-    """A 2D `atom_style sphere` data file (density column 1: masses are set by the input)."""
-    lines = [f"LAMMPS data file: {title}", "", f"{len(xy)} atoms", f"{n_types} atom types", "",
-             f"{lower[0]:.10g} {upper[0]:.10g} xlo xhi", f"{lower[1]:.10g} {upper[1]:.10g} ylo yhi",
-             "-0.5 0.5 zlo zhi", "", "Atoms # sphere", ""]
-    lines += [f"{i + 1} {int(t)} {2 * r:.10g} 1 {x:.10g} {y:.10g} 0"
-              for i, ((x, y), r, t) in enumerate(zip(xy, radius, types, strict=True))]
-    Path(path).write_text("\n".join(lines) + "\n")
 
 
 def read_dump(path: Path) -> list[tuple[int, pd.DataFrame]]:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from generators import contact, dem
-from generators.config import ConfigError
+from generators.errors import ConfigError
 from generators.scene import Scene, check_range, lattice_count, lattice_spacing, trajectory_parameters
 
 if TYPE_CHECKING:  # pandas is imported where a table is built, not when the workflow plans
@@ -158,7 +158,6 @@ class Collapse(Scene):
     dim = 2
     species = {FLOOR: "floor", GRAIN: "grain"}
     kinematic_species = (FLOOR,)
-    engines = ("lammps", "yade")
     metrics = CollapseMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from generators import contact, dem
-from generators.config import ConfigError
+from generators.errors import ConfigError
 from generators.scene import Scene, check_range, lattice_count, lattice_spacing
 
 GROUND, METEORITE = 0, 1
@@ -241,7 +241,6 @@ class Meteorite(Scene):
     dim = 2
     species = {GROUND: "ground", METEORITE: "meteorite"}
     kinematic_species = ()
-    engines = ("lammps", "yade")
     metrics = MeteoriteMetrics
 
     def packings(self, cfg: dict) -> list[dict]:

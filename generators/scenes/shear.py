@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from generators import contact, dem
-from generators.config import ConfigError
-from generators.scene import Scene, lattice_count, lattice_spacing, trajectory_parameters
+from generators.errors import ConfigError
+from generators.scene import Scene, check_range, lattice_count, lattice_spacing, trajectory_parameters
 
 BOX, SOIL, PLATEN = 0, 1, 2
 LOWER = "lower"            # the packing's group of box spheres in the moving lower half
@@ -275,7 +275,6 @@ class Shear(Scene):
     dim = 3
     species = {BOX: "box", SOIL: "soil", PLATEN: "platen"}
     kinematic_species = (BOX, PLATEN)
-    engines = ("yade", "lammps")
     metrics = ShearMetrics
     log_scaled_properties = ("young", "normal_stress")
 
@@ -325,7 +324,7 @@ class Shear(Scene):
         dt = step[0]
         interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
         every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
-        start = every * int(math.ceil(row["load_time"] / (every * dt)))     # LAMMPS dumps on multiples of every
+        start = every * int(math.ceil(row["load_time"] / (every * dt)))     # recording starts on a frame step
         speed = row["displacement"] / (every * dt * (row["frames"] - 1))
         box_lower, box_upper = domain(row, row["domain_displacement"])
         platen = dem.Platen(PLATEN_GROUP, float(row["platen_mass"]), platen_force(row), axis=2,
@@ -356,7 +355,6 @@ class Shear(Scene):
         return int(lattice_count(length * width * FILL_FACTOR * height, cfg["radius"][1], 3) + walls)
 
     def check(self, cfg: dict) -> None:
-        from generators.scene import check_range
         check_range(self.name, "sweep.young", cfg["sweep"]["young"])
         check_range(self.name, "sweep.normal_stress", cfg["sweep"]["normal_stress"])
         length, width, _ = cfg["box"]

@@ -187,7 +187,6 @@ class Slide(Scene):
     dim = 2
     species = {BEDROCK: "bedrock", STABLE: "stable soil", WEAK: "sliding-prone soil"}
     kinematic_species = (BEDROCK,)
-    engines = ("lammps", "yade")
     metrics = SlideMetrics
 
     def sweep_size(self, cfg: dict) -> int:

@@ -38,6 +38,8 @@ from generators.yade import runner
 
 CONTACT_MODEL = "linear spring-dashpot, Coulomb friction (YADE ViscElMat, Law2_ScGeom_ViscElPhys_Basic)"
 FRAMES = "frames.npz"
+PARALLEL = "threads"        # more cores: YADE's own threads (-j) in one process (generators/engines.py)
+ERRORS = (runner.YadeError,)
 
 
 def _unsupported(setup: dem.Setup, what: str) -> dem.UnsupportedSetup:

@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from generators import collision, config, contact, dem, engine, scenes
+from generators import collision, config, contact, dem, engine, engines, scenes
 
 pytestmark = pytest.mark.engine
 
-ENGINES = ("lammps", "yade")
+ENGINES = engines.NAMES          # every registered engine (generators/engines.py)
 RADIUS, DENSITY, G = 0.01, 2650.0, 9.81
 
 

@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from generators import config, contact, convert, dem, engine, ensemble, h5md, sweep
+from generators import config, contact, convert, dem, engine, engines, ensemble, h5md, sweep
 from generators.scenes import slide
 
-ENGINES = ("lammps", "yade")
+ENGINES = engines.NAMES          # every registered engine (generators/engines.py)
 RADIUS, DENSITY, G = 0.01, 2650.0, 9.81
 
 

@@ -10,7 +10,7 @@ from generators import config as gconfig
 from generators import locks as glocks
 from generators import property_test as gproperty
 from generators import report as greport
-from generators import engine as gengine
+from generators import engines as gengines
 from generators import ensemble as gensemble
 from generators import launch as glaunch
 from generators import scales as gscales
@@ -33,7 +33,7 @@ except gconfig.ConfigError as exc:
     sys.exit(f"graphdem: {exc}")
 
 SCENES = gscenes.names()
-ENGINES = list(gengine.DRIVERS)
+ENGINES = gengines.names()             # the engine registry (generators/engines.py)
 # A run: a scene in its configured engine (results/<scene>/), in another engine for the cross-check
 # (results/crosscheck/<scene>/<engine>/), on the same sweep rows from the same settled packings, or in its
 # configured engine from packings perturbed by crosscheck.perturbation radii (results/crosscheck/<scene>/chaos/).
@@ -133,8 +133,9 @@ def run_engine(wildcards) -> str:
 
 
 def _ranks(scene: str, engine: str) -> int:
-    """The MPI ranks of a LAMMPS run of ``scene`` (its `ranks` key); YADE runs one process."""
-    return CFG[scene]["ranks"] if engine == "lammps" else 1
+    """The MPI ranks of a run of ``scene`` in ``engine``: its `ranks` key where the engine takes more cores as MPI
+    ranks (LAMMPS), else 1 (one process: YADE)."""
+    return CFG[scene]["ranks"] if gengines.takes_ranks(engine) else 1
 
 
 def prepare_ranks(wildcards) -> int:
@@ -499,6 +500,11 @@ def crosscheck_sims(engine: str):
     def sims(wildcards) -> list[str]:
         return [f"{run_dir(wildcards.scene, engine)}/sims/{i}.h5" for i in crosscheck_ids(wildcards.scene)]
     return sims
+
+
+def crosscheck_engine_args(wildcards, input) -> list[str]:
+    """`graphdem crosscheck`'s sims of each engine, as its options: --<engine> FILES for every registered one."""
+    return [arg for engine in ENGINES for arg in (f"--{engine}", *input[engine])]
 
 
 def other_engine(wildcards) -> str:

@@ -1,13 +1,13 @@
-# Stage crosscheck: the scene's sweep rows run in both engines (LAMMPS and YADE), each scene metric compared
-# over the sims beside the DEM's own chaos (the configured engine from perturbed packings; docs/crosscheck.md); and the transfer score of the scene's model on the other engine's test sims.
+# Stage crosscheck: the scene's sweep rows run in every registered engine (LAMMPS and YADE), each scene metric
+# compared for each pair of engines over the sims beside the DEM's own chaos (the configured engine from perturbed packings; docs/crosscheck.md); and the transfer score of the scene's model on the other engine's test sims.
 rule crosscheck:
     input:
-        lammps=crosscheck_sims("lammps"),
-        yade=crosscheck_sims("yade"),
+        **{engine: crosscheck_sims(engine) for engine in ENGINES},
         chaos=chaos_sims,
     output:
         "results/crosscheck/{scene}.csv",
     params:
+        sims=crosscheck_engine_args,
         tolerance=CFG["crosscheck"]["tolerance"],
         body=body_displacement_arg,
     log:
@@ -15,7 +15,7 @@ rule crosscheck:
     benchmark:
         "results/crosscheck/benchmarks/{scene}.tsv"
     shell:
-        "graphdem crosscheck --scene {wildcards.scene} --lammps {input.lammps:q} --yade {input.yade:q} --chaos {input.chaos:q} "
+        "graphdem crosscheck --scene {wildcards.scene} {params.sims:q} --chaos {input.chaos:q} "
         "--tolerance {params.tolerance:q} {params.body:q} --out {output:q} > {log} 2>&1"
 
 
