@@ -2,10 +2,13 @@
 
 The validated config is the single source of defaults. It is package data, found without any path
 outside the package: ``generators/defaults/default.yaml`` (top-level keys, public benchmarks) and
-``generators/scenes/<scene>.yaml`` (one section per registered scene), validated against
+``generators/scenes/<scene>.yaml`` (one section per registered scene, holding only what differs from
+``generators/scenes/base.yaml``, the keys every scene shares with the same default), validated against
 ``generators/defaults/schema.yaml`` with each scene's fragment ``generators/scenes/<scene>.schema.yaml``.
-Every section carries its scale presets under ``scales``; the chosen preset only fills keys the user
-left unset (command-line overrides always win) and ``scales`` is removed before validation.
+A scene's section is base.yaml with the scene's YAML laid over it (the scale presets too), as if every key
+were written in the scene's file. Every section carries its scale presets under ``scales``; the chosen
+preset only fills keys the user left unset (command-line overrides always win) and ``scales`` is removed
+before validation.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from generators.errors import ConfigError
 
 DEFAULTS = resources.files("generators").joinpath("defaults")
 SCENES_DIR = resources.files("generators").joinpath("scenes")
+SCENE_BASE = "base.yaml"            # beside the scenes' YAMLs: the keys they share (scene_base)
 
 
 def deep_update(base: dict, override: dict) -> dict:
@@ -176,10 +180,26 @@ def _yaml(node) -> Any:
 
 
 @functools.cache
+def _scene_base() -> dict:
+    return _yaml(SCENES_DIR.joinpath(SCENE_BASE))
+
+
+def scene_base() -> dict:
+    """The keys every scene's section shares with the same default (``generators/scenes/base.yaml``, its
+    ``scales`` included), a fresh copy."""
+    return copy.deepcopy(_scene_base())
+
+
+def scene_own(name: str) -> dict:
+    """What scene ``name``'s YAML sets itself (``generators/scenes/<name>.yaml``), without the base."""
+    return _yaml(SCENES_DIR.joinpath(f"{name}.yaml"))
+
+
+@functools.cache
 def _defaults() -> dict:
     config = _yaml(DEFAULTS.joinpath("default.yaml"))
     for name in scenes.names():
-        config[name] = _yaml(SCENES_DIR.joinpath(f"{name}.yaml"))
+        config[name] = deep_update(_scene_base(), scene_own(name))
     return config
 
 

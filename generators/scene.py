@@ -1,9 +1,10 @@
 """The Scene protocol: everything the pipeline knows about one DEM scene, in one module.
 
 A scene module ``generators/scenes/<name>.py`` defines ``SCENE``, an instance of a :class:`Scene`
-subclass; its config section (with its scale presets) is ``generators/scenes/<name>.yaml`` and its
-schema fragment ``generators/scenes/<name>.schema.yaml``. The registry (generators/scenes) finds
-them; every stage iterates the registry and no other file names a scene.
+subclass; its config section (with its scale presets) is ``generators/scenes/<name>.yaml`` laid over
+``generators/scenes/base.yaml`` (the keys every scene shares with the same default), and its schema
+fragment ``generators/scenes/<name>.schema.yaml``. The registry (generators/scenes) finds them; every
+stage iterates the registry and no other file names a scene.
 
 What a scene provides:
 

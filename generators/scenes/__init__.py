@@ -1,8 +1,8 @@
 """The scene registry: every module of this package that defines ``SCENE`` (a generators.scene.Scene).
 
 Adding a scene means adding ``<name>.py`` (its Scene), ``<name>.yaml`` (its config section with its
-scale presets) and ``<name>.schema.yaml`` (its schema fragment) here; every stage iterates
-:func:`registry`.
+scale presets, holding what differs from ``base.yaml``, the keys every scene shares) and
+``<name>.schema.yaml`` (its schema fragment) here; every stage iterates :func:`registry`.
 """
 
 from __future__ import annotations

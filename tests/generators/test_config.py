@@ -268,3 +268,38 @@ def test_ensemble_members_is_a_count_per_scale_and_anything_else_is_refused_by_k
         "ensemble_members"] == 0
     with pytest.raises(config.ConfigError, match=r"config key 'slide\.evaluate\.ensemble_members' = "):
         config.load({"slide": {"evaluate": {"ensemble_members": value}}})
+
+
+def _key_paths(node: dict, prefix: tuple = ()) -> dict[tuple, tuple]:
+    """Every leaf of a parsed YAML mapping by its key path: a non-empty mapping's keys are walked into, anything
+    else (a scalar, a list, an empty mapping) is a leaf, kept with its type name so that 1 and 1.0 differ."""
+    paths = {}
+    for key, value in node.items():
+        if isinstance(value, dict) and value:
+            paths.update(_key_paths(value, (*prefix, key)))
+        else:
+            paths[(*prefix, key)] = (type(value).__name__, value)
+    return paths
+
+
+def test_no_default_is_repeated_in_every_scene_yaml_and_the_base_reaches_every_scene():
+    """A key whose default is the same in every scene's YAML belongs in generators/scenes/base.yaml (no scene
+    repeats a base key with the base's value), and every key of the base, scale presets included, is in each
+    resolved scene section, with the base's value where the scene's YAML does not set its own."""
+    own = {name: _key_paths(config.scene_own(name)) for name in scenes.names()}
+    first, *rest = own.values()
+    assert [".".join(map(str, p)) for p, v in first.items() if all(o.get(p) == v for o in rest)] == []
+    base = _key_paths(config.scene_base())
+    assert [f"{name}: {'.'.join(map(str, p))}" for name, paths in own.items() for p, v in base.items()
+            if paths.get(p) == v] == []
+    for scale in ("ci", "default", "paper"):
+        loaded = config.load({"scale": scale})
+        for name, paths in own.items():
+            resolved = _key_paths(loaded[name])
+            for path, value in base.items():
+                if path[0] == "scales" and path[1] != scale:
+                    continue
+                key = path[2:] if path[0] == "scales" else path
+                assert key in resolved, f"{name} at scale {scale}: base key {'.'.join(map(str, key))} missing"
+                if path not in paths and key not in paths:
+                    assert resolved[key] == value, f"{name} at scale {scale}: {'.'.join(map(str, key))}"
