@@ -1,6 +1,6 @@
 """The generators' stages on the `graphdem` command line: config, sweep, prepare, simulate, convert,
-inspect, export, import-solidgn, stability-dem, restitution, physics, crosscheck and transfer (surrogate/cli.py
-adds the surrogate's and runs them all).
+inspect, export, import-solidgn, stability-dem, restitution, physics, crosscheck and transfer, each added by its
+registrar (REGISTRARS; graphdem/cli.py adds the surrogate's and runs them all).
 
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason
 (naming the file, sim, frame or config key) when something is wrong.
@@ -229,7 +229,7 @@ def _ranks_option(p: argparse.ArgumentParser) -> None:
                         "take 1 only")
 
 
-def _add_config(sub, names: list[str]) -> None:
+def _add_config(sub) -> None:
     p = sub.add_parser("config", help="print the resolved, validated configuration",
                        description="The package defaults with the chosen scale preset, --config files and --set keys "
                                    "on top, validated against the schema: what the workflow runs with.")
@@ -237,17 +237,17 @@ def _add_config(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_config)
 
 
-def _add_sweep(sub, names: list[str]) -> None:
+def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="write the sweep table (one row per simulation)")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--config-json", type=json_arg, required=True, help="the scene's resolved config section")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.set_defaults(func=cmd_sweep)
 
 
-def _add_prepare(sub, names: list[str]) -> None:
+def _add_prepare(sub) -> None:
     p = sub.add_parser("prepare", help="settle one packing under gravity (shared by many sims)")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--engine", choices=engines.names(), required=True, help="the engine that settles it")
     p.add_argument("--params", type=json_arg, required=True, help="packing parameters (JSON)")
     p.add_argument("--out", type=Path, required=True, help="packing folder to write")
@@ -255,9 +255,9 @@ def _add_prepare(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_prepare)
 
 
-def _add_simulate(sub, names: list[str]) -> None:
+def _add_simulate(sub) -> None:
     p = sub.add_parser("simulate", help="run one simulation of the sweep with the DEM engine")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="the sim's sweep row (JSON)")
     p.add_argument("--packing", type=Path, required=True, help="settled packing folder")
     p.add_argument("--out", type=Path, required=True, help="raw output folder to write")
@@ -265,7 +265,7 @@ def _add_simulate(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_simulate)
 
 
-def _add_convert(sub, names: list[str]) -> None:
+def _add_convert(sub) -> None:
     p = sub.add_parser("convert", help="convert a raw engine output folder to H5MD")
     p.add_argument("--raw", type=Path, required=True,
                    help="a simulate stage's raw folder (its run.json names the scene and the engine)")
@@ -273,13 +273,13 @@ def _add_convert(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_convert)
 
 
-def _add_stability_dem(sub, names: list[str]) -> None:
+def _add_stability_dem(sub) -> None:
     p = sub.add_parser("stability-dem", help="run one sim at multiples of the stable DEM time step; report blow-ups",
                        description="Stress test of the DEM: the sim of --sim run with dt = f x the stable limit "
                                    "for every f of --factors, through the same blow-up detectors as the dataset "
                                    "(non-finite values, escapes, overlaps, energy growth). Writes one row per f: "
                                    "stable, or the frame and cause of the blow-up; raw output is discarded.")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="one row of the sweep table (JSON)")
     p.add_argument("--packing", type=Path, required=True, help="the sim's settled packing (prepare stage)")
     p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
@@ -287,7 +287,7 @@ def _add_stability_dem(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_stability_dem)
 
 
-def _add_restitution(sub, names: list[str]) -> None:
+def _add_restitution(sub) -> None:
     p = sub.add_parser("restitution", help="measure a scene's two-sphere restitution at chosen DEM time steps",
                        description="Collide two spheres of the scene's material head-on in each engine, at each "
                                    "--dt-safety x the scene's stable limit, for its smallest and its nominal sphere, "
@@ -296,7 +296,7 @@ def _add_restitution(sub, names: list[str]) -> None:
                                    "configured one. The design asks for at most 2 %: the cheapest step a scene can "
                                    "take is the largest that passes in every row (docs/performance.md, \"The DEM's "
                                    "time step\").")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--dt-safety", type=float, nargs="+", metavar="F",
                    help="time steps in units of the stable limit (default: the scene's configured one)")
     p.add_argument("--engines", nargs="+", choices=engines.names(), default=engines.names(),
@@ -309,11 +309,11 @@ def _add_restitution(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_restitution)
 
 
-def _add_physics(sub, names: list[str]) -> None:
+def _add_physics(sub) -> None:
     p = sub.add_parser("physics", help="check a scene's DEM data against published physics (table and plot)",
                        description="The scene's own physics check on its sims, e.g. the column collapse's runout "
                                    "against the aspect ratio beside the published laws (docs/collapse-scene.md).")
-    p.add_argument("--scene", choices=names, required=True)
+    p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--data", type=Path, nargs="+", required=True, help="the scene's H5MD sims")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.add_argument("--plot", type=Path, required=True, help="PNG to write")
@@ -325,14 +325,15 @@ def _engine_flags() -> str:
     return " and ".join(f"--{name} FILES" for name in engines.NAMES)
 
 
-def _add_crosscheck(sub, names: list[str]) -> None:
+def _add_crosscheck(sub) -> None:
     p = sub.add_parser("crosscheck", help="compare a scene's metrics over the same sims run in each engine",
                        description="One row per scene metric and pair of engines (its value at each sim's last "
                                    "frame): both engines' mean and standard deviation over the sims, their relative "
                                    "difference and pass/fail against the larger of --tolerance and the combined "
                                    "standard error (docs/crosscheck.md). With --combine, stack finished tables "
                                    "instead.")
-    p.add_argument("--scene", choices=names, help=f"the scene (with {' and '.join('--' + e for e in engines.NAMES)})")
+    p.add_argument("--scene", choices=scenes.names(),
+                   help=f"the scene (with {' and '.join('--' + e for e in engines.NAMES)})")
     for name in engines.NAMES:
         p.add_argument(f"--{name}", type=Path, nargs="+", help=f"the sims run in {name.upper()} (H5MD)")
     p.add_argument("--chaos", type=Path, nargs="+",
@@ -344,7 +345,7 @@ def _add_crosscheck(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_crosscheck)
 
 
-def _add_transfer(sub, names: list[str]) -> None:
+def _add_transfer(sub) -> None:
     p = sub.add_parser("transfer", help="a model's rollout MSE on its own engine's test sims beside the other's",
                        description="Stack two `graphdem evaluate` tables of one checkpoint: on the test sims of the "
                                    "engine it was trained on (--same) and on the same rows run in the other engine "
@@ -357,7 +358,7 @@ def _add_transfer(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_transfer)
 
 
-def _add_import_solidgn(sub, names: list[str]) -> None:
+def _add_import_solidgn(sub) -> None:
     p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
                        description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "
                                    "trajectories) into DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are "
@@ -370,7 +371,7 @@ def _add_import_solidgn(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_import_solidgn)
 
 
-def _add_export(sub, names: list[str]) -> None:
+def _add_export(sub) -> None:
     p = sub.add_parser("export", help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)",
                        description="Write TRAJECTORY (an H5MD sim or Graph-DEM rollout) as the ParaView time "
                                    "series --out NAME.pvd: one .vtu per exported frame in the folder NAME/ beside "
@@ -390,23 +391,24 @@ def _add_export(sub, names: list[str]) -> None:
     p.set_defaults(func=cmd_export)
 
 
-def _add_inspect(sub, names: list[str]) -> None:
+def _add_inspect(sub) -> None:
     p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
     p.set_defaults(func=cmd_inspect)
 
 
-#: the generators' subcommands in the order `graphdem --help` lists them, each added by its function
-COMMANDS = (_add_config, _add_sweep, _add_prepare, _add_simulate, _add_convert, _add_stability_dem, _add_restitution,
-            _add_physics, _add_crosscheck, _add_transfer, _add_import_solidgn, _add_export, _add_inspect)
+#: the generators' registrars, in the order `graphdem --help` lists their subcommands (graphdem/cli.py adds the
+#: surrogate's after them); each adds one subcommand to the `graphdem` subparsers ``sub``, its scene and engine
+#: choices from their registries
+REGISTRARS = (_add_config, _add_sweep, _add_prepare, _add_simulate, _add_convert, _add_stability_dem,
+              _add_restitution, _add_physics, _add_crosscheck, _add_transfer, _add_import_solidgn, _add_export,
+              _add_inspect)
 
 
 def add_commands(sub) -> None:
-    """Add the generators' subcommands to the `graphdem` subparsers ``sub`` (scene and engine choices from their
-    registries)."""
-    names = scenes.names()
-    for add in COMMANDS:
-        add(sub, names)
+    """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
+    for register in REGISTRARS:
+        register(sub)
 
 
 #: the argparse destinations a subcommand writes (files, or folders it writes files into); every other path is read

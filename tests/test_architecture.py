@@ -161,8 +161,8 @@ def _imports(path: Path, known: set[str]) -> tuple[set[str], set[str]]:
 
 
 def _import_graph() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
-    """The module import graph of generators and surrogate: (module-level edges, function-level edges)."""
-    paths = {_module_name(p): p for package in ("generators", "surrogate") for p in _python_files(package)}
+    """The module import graph of generators, surrogate and graphdem: (module-level edges, function-level edges)."""
+    paths = {_module_name(p): p for package in ("generators", "surrogate", "graphdem") for p in _python_files(package)}
     graphs = {name: _imports(path, set(paths)) for name, path in paths.items()}
     return {n: g[0] for n, g in graphs.items()}, {n: g[1] for n, g in graphs.items()}
 
@@ -184,7 +184,7 @@ def test_the_module_import_graph_has_no_circle():
     Scene class."""
     top, local = _import_graph()
     assert {"generators.config", "generators.errors", "generators.scene", "generators.engines",
-            "surrogate.cli"} <= set(top)
+            "surrogate.cli", "graphdem.cli"} <= set(top)
     list(graphlib.TopologicalSorter(top).static_order())          # raises CycleError on a circle
     full = {name: top[name] | local[name] for name in top}
     circles = {frozenset({a, b}) for a in full for b in local[a] if a in _reach(full, b)}
@@ -212,7 +212,7 @@ def test_every_registered_scene_is_served_by_every_stage(tmp_path, scene):
 
 # Functions over the 80-line limit that are still to be split; the list may only shrink (a function that is no
 # longer too long must leave it, a new one must not join it).
-TOO_LONG = {"surrogate/cli.py:build_parser", "surrogate/train.py:_train", "surrogate/train.py:batch_loss"}
+TOO_LONG = {"surrogate/train.py:_train", "surrogate/train.py:batch_loss"}
 MAX_FUNCTION_LINES = 80
 
 

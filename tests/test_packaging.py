@@ -20,7 +20,8 @@ from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 
 from generators import config, h5md, scenes
-from surrogate import cli, evaluate
+from graphdem import cli
+from surrogate import evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("generators", "surrogate", "graphdem")
@@ -93,7 +94,7 @@ def test_the_wheel_carries_every_file_of_the_packages_and_nothing_else(installed
     assert {f"generators/scenes/{s}{ext}" for s in scenes.names() for ext in (".yaml", ".schema.yaml")} <= set(expected)
     carried = {n for n in names if ".dist-info/" not in n}
     assert sorted(set(expected) - carried) == [] and sorted(carried - set(expected)) == []
-    assert "graphdem = surrogate.cli:main" in entry_points
+    assert "graphdem = graphdem.cli:main" in entry_points
     assert meta["Version"] == h5md.CREATOR_VERSION            # the H5MD creator version is the package's
     declared = PROJECT["dependencies"] + [f'{r}; extra == "{extra}"' for extra, reqs in EXTRAS.items() for r in reqs]
     assert {str(Requirement(r)) for r in meta.get_all("Requires-Dist")} == {str(Requirement(r)) for r in declared}
@@ -118,6 +119,7 @@ def test_the_installed_wheel_loads_the_config_and_runs_graphdem_outside_the_chec
     assert set(scenes.names()) <= set(loaded) and loaded == config.load({})
 
     helped = _run([graphdem, "--help"], cwd=cwd, env=env).stdout
+    assert _run([str(installed["python"]), "-m", "graphdem", "--help"], cwd=cwd, env=env).stdout == helped
     parser = cli.build_parser()
     commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
     assert {"config", "sweep", "simulate", "import-solidgn", "train", "evaluate"} <= set(commands)

@@ -1,0 +1,80 @@
+"""The `graphdem` command: the pipeline's stages as subcommands; each Snakemake rule calls one.
+
+Each stage registers its own subcommands (``register(sub)``, next to the code that runs them): the generators'
+in generators/cli.py (config, sweep, prepare, simulate, convert, stability-dem, restitution, physics,
+crosscheck, transfer, import-solidgn, export, inspect), the surrogate's in surrogate/commands/ (dataset,
+contacts, train, rollout, evaluate, combine, seeds, card, property-test, stress-readout, stress-test,
+stability-surrogate, the performance stage's) and surrogate/doc_tables/ (tables: the docs' results tables).
+Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the file, sim,
+frame or config key) when something is wrong.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from generators import cli as gcli
+from generators import scenes
+from surrogate import doc_tables
+from surrogate.commands import (
+    card,
+    dataset,
+    evaluate,
+    performance,
+    property_test,
+    rollout,
+    seeds,
+    stability,
+    stress,
+    train,
+)
+
+#: who adds which subcommands, in the order `graphdem --help` lists them
+REGISTRARS = (
+    *gcli.REGISTRARS,                   # config ... inspect: the generators' stages
+    dataset.register,                   # dataset, contacts
+    train.register,                     # train
+    rollout.register,                   # rollout
+    evaluate.register,                  # evaluate, combine
+    seeds.register,                     # seeds
+    card.register,                      # card
+    property_test.register,             # property-test
+    stress.register,                    # stress-readout, stress-test
+    stability.register,                 # stability-surrogate
+    performance.register,               # performance-dem, performance-surrogate, performance-report
+    doc_tables.add_command,             # tables
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="graphdem",
+        description="Graph-DEM pipeline: DEM sweeps (LAMMPS, YADE) to H5MD datasets, then training, rollout and "
+                    "evaluation of the Graph-DEM surrogate. The Snakemake workflow calls these subcommands; they "
+                    f"can also be run by hand. Scenes: {', '.join(scenes.names())}.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for register in REGISTRARS:
+        register(sub)
+    return parser
+
+
+def errors() -> tuple[type[Exception], ...]:
+    """The errors `graphdem` reports as one line on stderr (exit status 1): the generators' and the surrogate's."""
+    from surrogate.errors import CheckpointError, TrainingDiverged
+    return (*gcli.errors(), CheckpointError, TrainingDiverged)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    gcli.check_outputs(args)
+    try:
+        args.func(args)
+    except errors() as exc:
+        print(f"graphdem {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

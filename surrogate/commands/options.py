@@ -1,0 +1,106 @@
+"""The options several `graphdem` subcommands share, and what their commands make of them: the checkpoint and
+its sims, the device, the runtime switches, the bootstrap intervals, the scene metrics' options, logging."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from generators import cli as gcli
+
+json_arg = gcli.json_arg
+
+
+def log_to_stderr(quiet: bool = False) -> None:
+    """INFO lines on stderr; only warnings where ``quiet`` (the processes of a multi-process training but rank 0)."""
+    import logging
+    logging.basicConfig(level=logging.WARNING if quiet else logging.INFO,
+                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+
+
+def checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True, ensemble: bool = False) -> None:
+    if ensemble:
+        p.add_argument("--checkpoint", type=Path, nargs="+", required=True,
+                       help="a best.pt or last.pt written by train; several: an ensemble, every step the mean of "
+                            "their accelerations is integrated (the models must share history, R, the neighbour "
+                            "cap, the frame interval, box and types; docs/surrogate.md)")
+    else:
+        p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
+    p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--allow-other-scene", action="store_true",
+                   help="score sims of another scene (or other kinematic species) than the checkpoint was trained on")
+    p.add_argument("--runtime-json", type=json_arg,
+                   help="the scene's runtime switches (JSON: split_edge_mlp, skip_kinematic_pairs, prune_isolated, "
+                        "precision, sleep_speed, keep_in_domain, compile, optionally contact_correction; "
+                        "docs/performance.md); default: compute as in training")
+    device_option(p, "auto")
+
+
+def device_option(p: argparse.ArgumentParser, default: str | None) -> None:
+    from surrogate import devices
+    p.add_argument("--device", type=device_arg, default=default,
+                   help=f"where the model computes: {devices.CHOICES} (auto: the first CUDA GPU torch sees, else the "
+                        "CPU; under torchrun each process takes its LOCAL_RANK's GPU; docs/scaling.md)"
+                        + ("" if default else "; default: the config's device key with --scene, else auto"))
+
+
+def device_arg(value: str) -> str:
+    """An argparse type: a device setting (surrogate/devices.py)."""
+    from surrogate import devices
+    if not devices.SPEC.match(value):
+        raise argparse.ArgumentTypeError(f"{value!r}: allowed are {devices.CHOICES}")
+    return value
+
+
+def scene_metric_options(p: argparse.ArgumentParser) -> None:
+    """The options of the scene metrics: the landslide body threshold and the article's frame set of Acc."""
+    p.add_argument("--body-displacement", type=float, help="landslide body threshold (m); default one mean diameter")
+    p.add_argument("--frames", type=int, nargs="+", metavar="TAU",
+                   help="the predicted frames (tau = 1 is the first) the article-style Acc averages over, e.g. "
+                        "5 10 15 20 30 for the meteorite (article Table 2); default: every predicted frame")
+
+
+def intervals(args):
+    """The bootstrap of --intervals-json (the config's ``intervals`` keys), or None: the config's defaults."""
+    from surrogate.metrics.scores import Intervals
+    if args.intervals_json is None:
+        return None
+    want = {"samples", "level", "seed"}
+    if not isinstance(args.intervals_json, dict) or set(args.intervals_json) != want:
+        raise SystemExit(f"graphdem evaluate: --intervals-json {args.intervals_json!r}: an object with exactly the "
+                         f"keys {', '.join(sorted(want))}")
+    return Intervals(**args.intervals_json)
+
+
+def runtime_config(args, required_by: str | None = None):
+    """The Runtime of --runtime-json; None without it, unless the command ``required_by`` needs it."""
+    from surrogate import runtime
+    if args.runtime_json is None:
+        if required_by:
+            raise SystemExit(f"graphdem {required_by}: --runtime-json is required (the scene's runtime config)")
+        return None
+    return runtime.Runtime.from_config(args.runtime_json)
+
+
+def apply_runtime(args, simulator):
+    """The simulator prepared for the --runtime-json switches, and the Runtime (None without)."""
+    from surrogate import runtime
+    rt = runtime_config(args)
+    return (simulator, None) if rt is None else (runtime.apply(simulator, rt), rt)
+
+
+def write_rows(rows: list[dict], out: Path) -> None:
+    """``rows`` as a CSV table at ``out``, written atomically."""
+    import pandas as pd
+
+    from generators.atomic import atomic_path
+    with atomic_path(out) as tmp:
+        pd.DataFrame(rows).to_csv(tmp, index=False)
+
+
+def write_table(table, out: Path, **to_csv) -> None:
+    """A DataFrame as CSV at ``out``, written atomically (``to_csv``: pandas' options, index=False by default)."""
+    from generators.atomic import atomic_path
+    with atomic_path(out) as tmp:
+        table.to_csv(tmp, **{"index": False, **to_csv})

@@ -1,0 +1,78 @@
+"""`graphdem train`: train Graph-DEM with the model and train sections of a scene's config (surrogate/train.py)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from generators import cli as gcli
+from generators import scenes
+from surrogate.commands import options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
+                       description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
+                                   "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
+                                   "used to resume) and history.csv into --out-dir. The model and training "
+                                   "settings are the --scene's section of the workflow's config: the package "
+                                   "defaults, --config files and --set keys, e.g. graphdem train --scene slide "
+                                   "--set scale=ci --set slide.train.lr=1e-3 (graphdem config prints the result).",
+                       epilog="Paths default to the workflow's: results/<scene>/dataset/{stats.json,splits.csv} "
+                              "and results/<scene>/model/.")
+    p.add_argument("--scene", choices=scenes.names() + sorted(gcli.gconfig.BENCHMARKS),
+                   help="the scene or public benchmark whose model and train sections to use")
+    gcli.config_options(p)
+    p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<scene>/dataset/stats.json)")
+    p.add_argument("--splits", type=Path, help="dataset splits.csv (default results/<scene>/dataset/splits.csv)")
+    p.add_argument("--out-dir", type=Path, help="checkpoint folder (default results/<scene>/model)")
+    # the workflow passes its already resolved sections (internal; users give --scene/--config/--set)
+    p.add_argument("--model-json", type=options.json_arg, help=argparse.SUPPRESS)
+    p.add_argument("--train-json", type=options.json_arg, help=argparse.SUPPRESS)
+    p.add_argument("--threads", type=int, default=1,
+                   help="torch CPU threads (under torchrun shared by the node's processes)")
+    options.device_option(p, None)
+    p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
+    p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def run(args) -> None:
+    from surrogate import distributed, train
+    model, train_cfg, device, stats, splits, out_dir = sections(args)
+    main = distributed.World.from_env().main
+    options.log_to_stderr(quiet=not main)
+    state = train.train(stats, splits, model, train_cfg, out_dir,
+                        threads=args.threads, fresh=args.fresh, max_steps=args.max_steps,
+                        progress=not args.no_progress, device=device)
+    if main:
+        print(json.dumps({k: state[k] for k in ("epoch", "step", "best_epoch", "best_mse", "finished", "seconds")}))
+
+
+def sections(args) -> tuple[dict, dict, str, Path, Path, Path]:
+    """The model and train config, the device, and the stats, splits and output folder, of ``graphdem train``:
+    from the resolved config's section of --scene (the workflow's keys), or from the rule's resolved sections.
+    --device wins over the config's ``device``; without either, auto."""
+    if args.model_json is not None or args.train_json is not None:
+        if args.model_json is None or args.train_json is None or args.scene or args.config_file or args.set:
+            raise SystemExit("graphdem train: --model-json and --train-json (the workflow's resolved sections) go "
+                             "together and replace --scene, --config and --set")
+        model, train_cfg, where, device = args.model_json, args.train_json, None, args.device or "auto"
+    else:
+        if not args.scene:
+            raise SystemExit("graphdem train: give --scene (a scene or public benchmark: "
+                             f"{', '.join(scenes.names() + sorted(gcli.gconfig.BENCHMARKS))}) to train with its "
+                             "model and train config")
+        resolved = gcli.resolved_config(args)
+        section = resolved[args.scene]
+        model, train_cfg, where = section["model"], section["train"], Path("results") / args.scene
+        device = args.device or resolved["device"]
+    paths = []
+    for value, default in ((args.stats, "dataset/stats.json"), (args.splits, "dataset/splits.csv"),
+                           (args.out_dir, "model")):
+        if value is None and where is None:
+            raise SystemExit("graphdem train: --stats, --splits and --out-dir are needed with --model-json")
+        paths.append(Path(value) if value is not None else where / default)
+    return model, train_cfg, device, *paths

@@ -1,0 +1,84 @@
+"""The `graphdem` command (graphdem/cli.py): its subcommands, each registered by its stage, all answer --help;
+the console script, ``python -m graphdem`` and ``python -m surrogate.cli`` are the same command."""
+
+import argparse
+import re
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from graphdem import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# `graphdem --help`'s subcommands, in its order, when each stage came to register its own: none may go missing
+SUBCOMMANDS = ("config", "sweep", "prepare", "simulate", "convert", "stability-dem", "restitution", "physics",
+               "crosscheck", "transfer", "import-solidgn", "export", "inspect", "dataset", "contacts", "train",
+               "rollout", "evaluate", "combine", "seeds", "card", "property-test", "stress-readout", "stress-test",
+               "stability-surrogate", "performance-dem", "performance-surrogate", "performance-report", "tables")
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_the_registrars_add_every_subcommand_in_the_order_of_the_help():
+    assert tuple(_subcommands(cli.build_parser())) == SUBCOMMANDS
+
+
+def test_each_registrar_adds_its_own_subcommands():
+    parser = argparse.ArgumentParser(prog="graphdem")
+    sub = parser.add_subparsers(dest="command")
+    seen = 0
+    for register in cli.REGISTRARS:
+        register(sub)
+        assert len(sub.choices) > seen, f"{register.__module__}.{register.__name__} registers nothing"
+        seen = len(sub.choices)
+    assert seen == len(SUBCOMMANDS)
+
+
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_every_subcommand_answers_help(command, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main([command, "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: graphdem {command} ")
+    assert callable(_subcommands(cli.build_parser())[command].get_default("func"))
+
+
+def test_the_help_lists_every_subcommand(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--help"])
+    assert exc.value.code == 0
+    listed = re.findall(r"^    ([a-z][a-z-]*)", capsys.readouterr().out, re.M)
+    assert tuple(listed) == SUBCOMMANDS
+
+
+def test_every_subcommand_the_docs_name_is_registered():
+    named = {m for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+             for m in re.findall(r"`graphdem ([a-z][a-z-]*)", path.read_text())}
+    assert named and named <= set(SUBCOMMANDS)
+
+
+def test_the_console_script_python_m_graphdem_and_the_former_module_are_one_command():
+    from surrogate import cli as former
+    assert former.main is cli.main and former.build_parser is cli.build_parser
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"graphdem": "graphdem.cli:main"}
+    env = {"COLUMNS": "100", "PATH": "/usr/bin:/bin"}
+    helped = [subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, env=env,
+                             cwd=ROOT)
+              for module in ("graphdem", "surrogate.cli")]
+    assert [p.returncode for p in helped] == [0, 0] and helped[0].stdout == helped[1].stdout
+    assert helped[0].stdout.startswith("usage: graphdem [-h] COMMAND ...")
+
+
+def test_an_unknown_subcommand_is_refused_with_the_list(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["no-such-command"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'no-such-command'" in capsys.readouterr().err
