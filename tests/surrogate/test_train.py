@@ -558,6 +558,26 @@ def test_a_finetuning_run_resumes_exactly(tiny_dataset, tmp_path):
     assert {"finetune_optimiser", "finetune_average", "onestep_best"} <= set(last)
 
 
+def test_a_run_stopped_at_the_one_step_end_resumes_both_phases_exactly(tiny_dataset, tmp_path):
+    """Stopped after the last step of the one-step phase, before that epoch's validation: the resumed run closes the
+    epoch, fine-tunes from the one-step best and ends with the uninterrupted run's history and every tensor of its
+    last.pt (weights, averages, the one-step best) and best.pt."""
+    tiny = _finetuned(tiny_dataset)
+    run(tiny, tmp_path / "whole")
+    whole = pd.read_csv(tmp_path / "whole" / "history.csv")
+    one_step_steps = int(whole.loc[whole["phase"] == "onestep", "step"].iloc[-1])
+    stopped = run(tiny, tmp_path / "parts", max_steps=one_step_steps)
+    assert stopped["step"] == one_step_steps and stopped["epoch"] == 1 and "finetune" not in stopped
+    run(tiny, tmp_path / "parts")
+    parts = pd.read_csv(tmp_path / "parts" / "history.csv")
+    pd.testing.assert_frame_equal(whole.drop(columns="seconds"), parts.drop(columns="seconds"))
+    for which, keys in (("last.pt", ("model", "best_model", "average_model", "finetune_average", "onestep_best")),
+                        ("best.pt", ("model",))):
+        a, b = (checkpoint.load(tmp_path / folder / which) for folder in ("whole", "parts"))
+        for key in keys:
+            assert a[key].keys() == b[key].keys() and all(torch.equal(a[key][k], b[key][k]) for k in a[key]), key
+
+
 def test_a_finished_run_is_continued_into_a_new_finetuning_not_retrained(tiny_dataset, tmp_path):
     """Adding train.finetune to a finished run, or changing it afterwards, gives what a run with that fine-tuning
     from the start gives; removing it ends the run where its one-step epochs ended."""
