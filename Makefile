@@ -52,11 +52,11 @@ run: install
 	$(VENV)/bin/snakemake -c$(CORES) $(TARGET)
 
 test: install
-	$(VENV)/bin/ruff check generators surrogate graphdem tests
+	$(VENV)/bin/ruff check generators surrogate evaluation graphdem workflow/graphdem_workflow tests
 	$(VENV)/bin/python -m pytest -q -n $(CORES) --dist loadgroup --no-loadscope-reorder --durations=15
 
 lint: install
-	$(VENV)/bin/ruff check generators surrogate graphdem tests
+	$(VENV)/bin/ruff check generators surrogate evaluation graphdem workflow/graphdem_workflow tests
 
 clean-results:
 	rm -rf results/*/ .snakemake

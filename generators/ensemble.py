@@ -4,7 +4,7 @@ Member j of a sim repeats the sim's run (same deck or script, packing, engine, r
 history frame K - 1, where every moving particle is displaced by a normal draw per axis (seeded by the sim's seed
 and j; in-plane in 2D scenes), and runs on from there to the end of the window. A deterministic replay reaches the
 sim's own state at frame K - 1 (positions, velocities, rotations, contact history) without a restart file, and
-that it did is checked where a member is read (surrogate/stored.py): its frames 0..K-1 must equal the sim's
+that it did is checked where a member is read (evaluation/stored.py): its frames 0..K-1 must equal the sim's
 stored frames bit for bit.
 
 The displacement's standard deviation per axis (:func:`displacement_std`) is the configured

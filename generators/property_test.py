@@ -1,5 +1,5 @@
 """The property values of a scene's property-sensitivity test (article Fig. 14; the test itself is
-surrogate/property_test.py): which value of one swept node property each of the two DEM reruns takes.
+evaluation/property_sensitivity.py): which value of one swept node property each of the two DEM reruns takes.
 
 ``evaluate.property_test: {property: P, at: [a, b]}`` sets P to the points a < b of its swept range
 ``sweep.P = [lo, hi]``, log-interpolated as the sweep spaces a modulus or a stress:

@@ -8,9 +8,10 @@ From your own H5MD file to a rollout and its error::
     predicted = graphdem.rollout(simulator, sim)               # the first K frames given, the rest predicted
     print(graphdem.rollout_mse(predicted, sim))                # m², over the predicted frames
 
-The pipeline's own code lives in two packages named in the article's vocabulary: ``generators`` (scenes,
-DEM engines, H5MD) and ``surrogate`` (dataset, Graph-DEM, training, rollout, metrics). The `graphdem` command
-is graphdem/cli.py.
+The pipeline's own code lives in three packages, the first two named in the article's vocabulary:
+``generators`` (scenes, DEM engines, H5MD), ``surrogate`` (dataset, Graph-DEM, training, rollout) and
+``evaluation`` (what measures a trained surrogate: metrics, baseline, tables, card, timings). The `graphdem`
+command is graphdem/cli.py (docs/architecture.md, "Packages").
 
 The names load on first use (torch and PyG take seconds to import), so that the command starts at once.
 """

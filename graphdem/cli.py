@@ -3,8 +3,9 @@
 Each stage registers its own subcommands (``register(sub)``, next to the code that runs them): the generators'
 in generators/cli.py (config, sweep, prepare, simulate, convert, stability-dem, restitution, physics,
 crosscheck, transfer, import-solidgn, export, inspect), the surrogate's in surrogate/commands/ (dataset,
-contacts, train, rollout, evaluate, combine, seeds, card, property-test, stress-readout, stress-test,
-stability-surrogate, the performance stage's) and surrogate/doc_tables/ (tables: the docs' results tables).
+contacts, train, rollout), the evaluation's in evaluation/commands/ (evaluate, combine, seeds, card,
+property-test, stress-readout, stress-test, stability-surrogate, the performance stage's) and
+evaluation/doc_tables/ (tables: the docs' results tables).
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the file, sim,
 frame or config key) when something is wrong.
 """
@@ -14,21 +15,19 @@ from __future__ import annotations
 import argparse
 import sys
 
-from generators import cli as gcli
-from generators import scenes
-from surrogate import doc_tables
-from surrogate.commands import (
+from evaluation import doc_tables
+from evaluation.commands import (
     card,
-    dataset,
     evaluate,
     performance,
-    property_test,
-    rollout,
+    property_sensitivity,
     seeds,
+    shear_stress,
     stability,
-    stress,
-    train,
 )
+from generators import cli as gcli
+from generators import scenes
+from surrogate.commands import dataset, rollout, train
 
 #: who adds which subcommands, in the order `graphdem --help` lists them
 REGISTRARS = (
@@ -39,8 +38,8 @@ REGISTRARS = (
     evaluate.register,                  # evaluate, combine
     seeds.register,                     # seeds
     card.register,                      # card
-    property_test.register,             # property-test
-    stress.register,                    # stress-readout, stress-test
+    property_sensitivity.register,      # property-test
+    shear_stress.register,              # stress-readout, stress-test
     stability.register,                 # stability-surrogate
     performance.register,               # performance-dem, performance-surrogate, performance-report
     doc_tables.add_command,             # tables

@@ -1,6 +1,6 @@
 """Several training processes on one batch: DistributedDataParallel under ``torchrun``.
 
-``torchrun --nproc-per-node N -m surrogate.cli train ...`` starts N processes and tells each its
+``torchrun --nproc-per-node N -m graphdem train ...`` starts N processes and tells each its
 ``RANK``, ``LOCAL_RANK`` and ``WORLD_SIZE``. Every process draws the same global batch (sample order,
 flips, pushforward steps and input noise from the shared seed) and computes the loss of its own
 contiguous share of the batch's samples (:func:`share`); the gradients are averaged across processes, and the

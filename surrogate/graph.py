@@ -19,7 +19,7 @@ Two implementations give the same edge set (tests):
 
 Rule (``method="auto"``, ``choose_method``): the cell list on every device but the CPU; on the CPU
 the k-d tree below ``CPU_CELLS_FROM`` particles and the cell list from there. Measured on one CPU
-thread (``python -m surrogate.bench_graph``, table in docs/surrogate.md): the k-d tree is 1.6-2x
+thread (``python -m evaluation.timing.graph``, table in docs/surrogate.md): the k-d tree is 1.6-2x
 faster at 700 particles and up to 1.4x at 2 000, the two trade places around 6 000, and from
 20 000 the cell list was 6-39 % faster in every run. ``method`` forces either one.
 
@@ -169,7 +169,7 @@ def choose_split(pos: torch.Tensor, radius: float, most: int = 4) -> int:
 
     Smaller cells test fewer candidates (per pair found, 2 instead of 2.9 in 2D, 3.7 instead of 6.4
     in 3D from R to R/2) but take more strips; on the CPU this count was the fastest or close
-    (``python -m surrogate.bench_graph``). A box with empty regions only underestimates it.
+    (``python -m evaluation.timing.graph``). A box with empty regions only underestimates it.
     """
     n, dim = pos.shape
     box = (pos.amax(dim=0) - pos.amin(dim=0)).clamp(min=radius)

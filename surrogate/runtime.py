@@ -30,7 +30,7 @@ one's measured effect):
   since the node and edge counts change every step. On the CPU, inductor generates C++ kernels and
   needs a C++ compiler and the Python headers (the Makefile's apt step). The first call of every new
   input kind (dtype, with or without properties or decoded subsets) compiles, which takes seconds
-  to a minute: it pays only over many rollouts in one process (``python -m surrogate.bench_rollout``
+  to a minute: it pays only over many rollouts in one process (``python -m evaluation.timing.rollout``
   measures both).
 * ``contact_correction`` (not exact; null turns it off): ``{allowed_overlap, iterations}`` and
   optionally ``tolerance`` (0 when absent). After

@@ -84,6 +84,24 @@ def load_sim(path: str | Path, stats: dict, property_names: list[str] | None = N
                props=normalised_properties(traj, list(property_names or []), stats), traj=traj)
 
 
+def data_files(data: list[Path]) -> list[Path]:
+    """H5MD files named directly or found (``*.h5``, sorted) in the given folders; hidden files (a writer's
+    temporaries, ``.<name>.tmp-<pid>.h5``) are not sims and are skipped."""
+    files: list[Path] = []
+    for item in data:
+        item = Path(item)
+        if item.is_dir():
+            found = sorted(p for p in item.glob("*.h5") if not p.name.startswith("."))
+            if not found:
+                raise FileNotFoundError(f"{item}: no *.h5 files in this folder")
+            files.extend(found)
+        elif item.is_file():
+            files.append(item)
+        else:
+            raise FileNotFoundError(f"{item}: no such file or folder")
+    return files
+
+
 def to_device(sim: Sim, device: torch.device) -> Sim:
     """The sim with its tensors on ``device`` (the sim itself where they are there already)."""
     if sim.position.device == device:

@@ -1,6 +1,7 @@
-"""The scene x engine architecture: layering, no import circles, one registry of scenes and one of engines served
-by every stage, no scene or engine named outside its own module (or package) and config (tests/test_packaging.py
-checks that a wheel carries the defaults; tests/generators/test_engine.py registers a new engine's name)."""
+"""The architecture: the packages' layering (docs/architecture.md, "Packages"), no import circles, one registry
+of scenes and one of engines served by every stage, no scene or engine named outside its own module (or package)
+and config (tests/test_packaging.py checks that a wheel carries the defaults; tests/generators/test_engine.py
+registers a new engine's name), no function over 80 lines."""
 
 import ast
 import graphlib
@@ -19,18 +20,46 @@ SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 STAGES = ("sweep", "prepare", "simulate", "convert", "dataset", "train", "rollout", "evaluate")
 
 
+# The packages, lowest layer first: each may import the ones before it and itself, never one after it. generators
+# (scenes, DEM engines, H5MD) knows nothing of learning; surrogate (the model, its training and use) nothing of how
+# it is measured; evaluation (what measures a trained surrogate) may use both; graphdem (the public API and the
+# command) all three. The workflow's own helpers (workflow/graphdem_workflow/) may import generators alone.
+LAYERS = ("generators", "surrogate", "evaluation", "graphdem")
+PACKAGES = (*LAYERS, "workflow/graphdem_workflow")
+
+
 def _python_files(package: str) -> list[Path]:
     return sorted((ROOT / package).rglob("*.py"))
 
 
-def test_generators_import_nothing_from_surrogate():
-    offenders = []
-    for path in _python_files("generators"):
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
-            offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] == "surrogate"]
+def _imported_packages(path: Path) -> list[tuple[int, str]]:
+    """(line, top-level package) of every import in ``path``: module level, in functions, under TYPE_CHECKING."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                 else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+        found += [(node.lineno, name.split(".")[0]) for name in names]
+    return found
+
+
+def test_each_package_imports_only_the_layers_below_it():
+    """generators imports neither surrogate, evaluation nor graphdem; surrogate neither evaluation nor graphdem;
+    evaluation not graphdem; the workflow's helpers only generators. Every import counts, in a function too."""
+    allowed = {package: set(LAYERS[:i + 1]) for i, package in enumerate(LAYERS)}
+    allowed["workflow/graphdem_workflow"] = {"generators", "graphdem_workflow"}
+    offenders = [f"{path.relative_to(ROOT)}:{line}: imports {name}"
+                 for package in PACKAGES for path in _python_files(package)
+                 for line, name in _imported_packages(path)
+                 if name in {*LAYERS, "graphdem_workflow"} - allowed[package]]
     assert offenders == []
+
+
+def test_the_layering_test_sees_a_forbidden_import(tmp_path):
+    """The check above finds an import inside a function and one under TYPE_CHECKING."""
+    path = tmp_path / "probe.py"
+    path.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from evaluation import tables\n\n"
+                    "def f():\n    import graphdem.cli\n")
+    assert _imported_packages(path) == [(1, "typing"), (3, "evaluation"), (6, "graphdem")]
 
 
 def test_the_registry_holds_every_scene_module_and_each_has_its_config_and_schema():
@@ -67,7 +96,7 @@ def test_no_scene_is_named_outside_its_own_module_and_config():
     its YAML files) names it, whether as a string, an attribute, a variable or an import."""
     names = set(scenes.names())
     offenders = []
-    for package in ("generators", "surrogate"):
+    for package in ("generators", "surrogate", "evaluation"):
         for path in _python_files(package):
             if path.parent == ROOT / "generators" / "scenes" and path.stem in names:
                 continue
@@ -106,7 +135,7 @@ def test_no_engine_is_named_outside_its_package_and_the_registry():
     names = set(engines.NAMES)
     assert names >= {"lammps", "yade"}
     offenders = []
-    for package in ("generators", "surrogate"):
+    for package in ("generators", "surrogate", "evaluation"):
         for path in _python_files(package):
             own = path.relative_to(ROOT / package).parts[0] in names
             if not own and path != ROOT / "generators" / "engines.py":
@@ -161,8 +190,8 @@ def _imports(path: Path, known: set[str]) -> tuple[set[str], set[str]]:
 
 
 def _import_graph() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
-    """The module import graph of generators, surrogate and graphdem: (module-level edges, function-level edges)."""
-    paths = {_module_name(p): p for package in ("generators", "surrogate", "graphdem") for p in _python_files(package)}
+    """The module import graph of the packages: (module-level edges, function-level edges)."""
+    paths = {_module_name(p): p for package in LAYERS for p in _python_files(package)}
     graphs = {name: _imports(path, set(paths)) for name, path in paths.items()}
     return {n: g[0] for n, g in graphs.items()}, {n: g[1] for n, g in graphs.items()}
 
@@ -184,13 +213,11 @@ def test_the_module_import_graph_has_no_circle():
     Scene class."""
     top, local = _import_graph()
     assert {"generators.config", "generators.errors", "generators.scene", "generators.engines",
-            "surrogate.cli", "graphdem.cli"} <= set(top)
+            "surrogate.commands.train", "evaluation.commands.evaluate", "graphdem.cli"} <= set(top)
     list(graphlib.TopologicalSorter(top).static_order())          # raises CycleError on a circle
     full = {name: top[name] | local[name] for name in top}
     circles = {frozenset({a, b}) for a in full for b in local[a] if a in _reach(full, b)}
     assert circles == {frozenset({"generators.scene", "generators.scenes"})}
-    assert not any(dep.startswith("surrogate") for name in full if name.startswith("generators")
-                   for dep in full[name])
 
 
 @pytest.mark.engine
@@ -202,7 +229,7 @@ def test_every_registered_scene_is_served_by_every_stage(tmp_path, scene):
     table = (proc.stdout + proc.stderr).split("Job stats:")[1].split("total")[0]
     jobs = {m[1]: int(m[2]) for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", table, re.M)}
     assert set(STAGES) <= set(jobs), jobs
-    from surrogate import cli
+    from graphdem import cli
     for command in ("sweep", "prepare", "simulate", "dataset"):
         with pytest.raises(SystemExit) as exc:     # argparse accepts the scene, then stops at a missing argument
             cli.build_parser().parse_args([command, "--scene", scene])
@@ -218,7 +245,7 @@ MAX_FUNCTION_LINES = 80
 
 def test_no_function_is_longer_than_80_lines():
     long = set()
-    for package in ("generators", "surrogate", "graphdem"):
+    for package in PACKAGES:
         for path in _python_files(package):
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \

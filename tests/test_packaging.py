@@ -19,12 +19,12 @@ import yaml
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 
+from evaluation import evaluate
 from generators import config, h5md, scenes
 from graphdem import cli
-from surrogate import evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("generators", "surrogate", "graphdem")
+PACKAGES = ("generators", "surrogate", "evaluation", "graphdem")
 PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
 EXTRAS = PROJECT["optional-dependencies"]
 
@@ -102,12 +102,13 @@ def test_the_wheel_carries_every_file_of_the_packages_and_nothing_else(installed
 
 def test_the_installed_wheel_is_the_code_imported_and_claims_no_commit_of_the_repository_around_it(installed):
     """The venv lies inside an unrelated git repository: its commit is not the code's."""
-    code = ("import generators, graphdem, surrogate; from surrogate import evaluate; "
-            "print(generators.__file__, surrogate.__file__, graphdem.__file__, evaluate.__file__); "
+    code = ("import evaluation, generators, graphdem, surrogate; from evaluation import evaluate; "
+            "print(generators.__file__, surrogate.__file__, evaluation.__file__, graphdem.__file__, "
+            "evaluate.__file__); "
             "print(evaluate.code_version())")
     *where, version = _run([str(installed["python"]), "-c", code], cwd=installed["cwd"], env=installed["env"]
                            ).stdout.split()
-    assert len(where) == 4 and all(Path(f).is_relative_to(installed["purelib"]) for f in where), where
+    assert len(where) == 5 and all(Path(f).is_relative_to(installed["purelib"]) for f in where), where
     assert version == h5md.CREATOR_VERSION
     if (ROOT / ".git").exists():                                 # the checkout itself names its commit
         assert evaluate.code_version().startswith(f"{h5md.CREATOR_VERSION}+")

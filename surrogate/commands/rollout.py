@@ -22,15 +22,15 @@ def register(sub) -> None:
 def run(args) -> None:
     import torch
 
-    from surrogate import ensemble, evaluate, provenance, rollout
-    from surrogate.samples import load_sim
+    from surrogate import ensemble, provenance, rollout
+    from surrogate.samples import data_files, load_sim
     options.log_to_stderr()
     torch.set_num_threads(max(1, args.threads))
     simulator, metas = ensemble.load(args.checkpoint, args.device)
     meta = metas[0]
     simulator, rt = options.apply_runtime(args, simulator)
     sha = provenance.digest(args.checkpoint)
-    for path in evaluate.data_files(args.data):
+    for path in data_files(args.data):
         sim = load_sim(path, meta["stats"], meta["model"].get("properties") or [],
                        allow_other_scene=args.allow_other_scene)
         result = rollout.rollout(simulator, sim, runtime=rt)

@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from surrogate import cli
+from graphdem import cli
 
 
 def refused(argv, capsys) -> str:

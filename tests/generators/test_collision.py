@@ -3,7 +3,7 @@
 import pandas as pd
 
 from generators import collision, config, scenes
-from surrogate import cli
+from graphdem import cli
 
 
 def test_the_scene_pairs_are_its_smallest_moving_sphere_and_its_nominal_one():

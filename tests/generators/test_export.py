@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from generators import export, h5md
-from surrogate import cli
+from graphdem import cli
 
 TIMES = np.array([0.0, 0.1, 0.25, 0.3, 0.5, 0.55, 0.8])          # uneven on purpose: velocity divides by each gap
 

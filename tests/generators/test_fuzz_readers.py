@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from generators import h5md
-from surrogate import checkpoint, cli, dataset
+from graphdem import cli
+from surrogate import checkpoint, dataset
 from surrogate.simulator import LearnedSimulator
 
 ALLOCATION_BOUND = 64 * 2**20

@@ -7,7 +7,8 @@ import pytest
 import yaml
 
 from generators import config, h5md
-from surrogate import checkpoint, cli, contacts
+from graphdem import cli
+from surrogate import checkpoint, contacts
 from surrogate import derived as derived_rules
 from tests.surrogate import synthetic
 

@@ -60,7 +60,8 @@ def test_a_split_table_without_paths_is_an_error(tmp_path):
 def test_stats_record_the_contact_miss_rate_of_r_on_the_train_split(tiny_dataset, tmp_path, capsys):
     """stats.json counts the train split's next-frame contacts and the share a graph of radius R misses, by the
     same function as surrogate/contacts.py; a radius that misses many warns, naming R."""
-    from surrogate import cli, contacts
+    from graphdem import cli
+    from surrogate import contacts
     stats = json.loads(tiny_dataset["stats_path"].read_text())
     table = pd.read_csv(tiny_dataset["splits"])
     missed = total = 0

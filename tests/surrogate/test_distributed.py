@@ -47,7 +47,7 @@ def torchrun(tiny: dict, out: Path, *extra: str) -> subprocess.CompletedProcess:
     if Path("/sys/class/net/lo").exists():
         env["GLOO_SOCKET_IFNAME"] = "lo"
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nnodes", "1", "--nproc-per-node", "2",
-           "--master-addr", "127.0.0.1", "--master-port", str(free_port()), "-m", "surrogate.cli", "train",
+           "--master-addr", "127.0.0.1", "--master-port", str(free_port()), "-m", "graphdem", "train",
            "--stats", str(tiny["stats_path"]), "--splits", str(tiny["splits"]),
            "--model-json", json.dumps(tiny["model"]), "--train-json", json.dumps(settings(tiny)),
            "--out-dir", str(out), "--device", "cpu", "--no-progress", *extra]

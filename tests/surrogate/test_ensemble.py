@@ -8,7 +8,9 @@ import pandas as pd
 import pytest
 import torch
 
-from surrogate import checkpoint, cli, ensemble, evaluate
+from evaluation import evaluate
+from graphdem import cli
+from surrogate import checkpoint, ensemble
 from surrogate import runtime as rt
 from surrogate.batched import rollout_batch
 from surrogate.ensemble import Ensemble

@@ -8,8 +8,10 @@ import pandas as pd
 import pytest
 import torch
 
+from evaluation import evaluate, metrics_table
 from generators import config, h5md
-from surrogate import checkpoint, cli, dataset, evaluate, metrics_table, train
+from graphdem import cli
+from surrogate import checkpoint, dataset, train
 from surrogate import runtime as rt
 from surrogate.graph import radius_graph
 from surrogate.rollout import rollout

@@ -21,8 +21,8 @@ def test_digest_is_the_files_sha256_and_an_ensemble_joins_its_members_in_order(t
         provenance.digest([])
 
 
-@pytest.mark.parametrize("module", ["surrogate.property_test", "surrogate.stress_test", "surrogate.stored",
-                                    "surrogate.provenance"])
+@pytest.mark.parametrize("module", ["evaluation.property_sensitivity", "evaluation.shear_stress_check",
+                                    "evaluation.stored", "surrogate.provenance"])
 def test_scoring_stored_files_does_not_import_the_model(module):
     probe = f"import sys\nimport {module}\nprint('torch_geometric' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout

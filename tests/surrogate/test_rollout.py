@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import torch
 
+from evaluation.baseline import constant_velocity
 from generators import h5md
 from surrogate import rollout, runtime
-from surrogate.baseline import constant_velocity
 from surrogate.samples import load_sim
 from surrogate.simulator import LearnedSimulator, build_graph
 

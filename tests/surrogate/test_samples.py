@@ -5,6 +5,7 @@ import torch
 from generators import h5md
 from surrogate.samples import (
     activity_weights,
+    data_files,
     epoch_activity_weight,
     epoch_order,
     load_sim,
@@ -99,3 +100,9 @@ def test_epoch_order_is_a_permutation_or_draws_in_proportion_to_the_weights():
     # the same generator state gives the same epoch (a resumed run draws what the uninterrupted one drew)
     assert epoch_order(20, weights, torch.Generator().manual_seed(9)) == epoch_order(20, weights,
                                                                                      torch.Generator().manual_seed(9))
+
+
+def test_a_folder_of_sims_is_read_without_hidden_temporaries(tmp_path):
+    for name in ("slide_0001.h5", "slide_0000.h5", ".slide_0002.tmp-4242.h5", "notes.txt"):
+        (tmp_path / name).write_bytes(b"")
+    assert [p.name for p in data_files([tmp_path])] == ["slide_0000.h5", "slide_0001.h5"]

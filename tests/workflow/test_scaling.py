@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from generators import config, launch
+from generators import config
+from graphdem_workflow import launch
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
@@ -21,7 +22,7 @@ def test_launch_settings_make_the_train_command_and_the_gpu_requests():
     assert (cfg["device"], cfg["launch"]) == ("auto", {"launcher": "plain", "processes": 1})     # the defaults
     assert launch.train_command(cfg) == ["graphdem"] and launch.train_gpus(cfg) == launch.gpus(cfg) == 0
     cfg = config.load({"scale": "ci", "device": "cuda", "launch": {"launcher": "torchrun", "processes": 4}})
-    assert launch.train_command(cfg) == ["torchrun", "--standalone", "--nproc-per-node", "4", "-m", "surrogate.cli"]
+    assert launch.train_command(cfg) == ["torchrun", "--standalone", "--nproc-per-node", "4", "-m", "graphdem"]
     assert launch.train_gpus(cfg) == 4 and launch.gpus(cfg) == 1
     assert launch.device_args(cfg) == ["--device", "cuda"]
     cpu = config.load({"device": "cpu", "launch": {"launcher": "torchrun", "processes": 2}})
@@ -34,7 +35,7 @@ def test_launch_settings_make_the_train_command_and_the_gpu_requests():
 
 
 SNAKEFILE = """
-from generators.launch import MachineArgs
+from graphdem_workflow.launch import MachineArgs
 rule job:
     output: "out.txt"
     params:
@@ -45,7 +46,7 @@ rule job:
 
 
 def _snakemake(workdir: Path, *args: str) -> str:
-    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])       # generators.launch of this tree
+    path = os.pathsep.join([str(ROOT / "workflow"), os.environ.get("PYTHONPATH", "")])  # this tree's helpers
     proc = subprocess.run([SNAKEMAKE, "-c1", "-s", str(workdir / "Snakefile"), "-d", str(workdir), *args],
                           capture_output=True, text=True, cwd=workdir, env={**os.environ, "PYTHONPATH": path})
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -83,7 +84,7 @@ def test_the_jobs_take_the_device_and_the_train_job_its_launcher(tmp_path):
     assert "gpus=0" in resources
     jobs = _dry_run(tmp_path / "gpus", "device=cuda", "launch={launcher: torchrun, processes: 2}")
     words, resources = jobs["train"]
-    assert words[:7] == ["torchrun", "--standalone", "--nproc-per-node", "2", "-m", "surrogate.cli", "train"]
+    assert words[:7] == ["torchrun", "--standalone", "--nproc-per-node", "2", "-m", "graphdem", "train"]
     assert words[words.index("--device") + 1] == "cuda" and "gpus=2" in resources
     for rule in ("rollout", "evaluate"):
         words, resources = jobs[rule]

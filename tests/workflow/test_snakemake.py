@@ -376,7 +376,7 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     import pandas as pd
 
-    from surrogate.tables import read_csv
+    from evaluation.tables import read_csv
     res = tmp_path / "results" / "slide_small"
     table = read_csv(res / "metrics.csv")                 # the digest as text, whatever its characters
     mse = table[(table["metric"] == "rollout MSE") & (table["sim"] == "all")]
@@ -493,7 +493,7 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
     the test sim's normal stress times the train sims' mean peak stress ratio."""
     import pandas as pd
 
-    from surrogate import stress
+    from evaluation import shear_stress
     res = ci_results / "shear"
     splits = pd.read_csv(res / "dataset" / "splits.csv")
     ids = list(splits.query("split == 'test'")["id"])
@@ -517,7 +517,7 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
         for name in ("readout", "graphdem", "cv", "coulomb"):
             assert np.isfinite(row[f"{name}_peak"]) and np.isfinite(row[f"{name}_rmse"])
             assert row[f"{name}_error"] == pytest.approx(row[f"{name}_peak"] / row["dem_peak"] - 1)
-    _, meta = stress.load(res / "stress" / "readout.pt")
+    _, meta = shear_stress.load(res / "stress" / "readout.pt")
     assert meta["train_sims"] == list(splits.query("split == 'train'")["id"])
     assert meta["valid_sims"] == list(splits.query("split == 'valid'")["id"])
     history = pd.read_csv(res / "stress" / "history.csv")

@@ -7,17 +7,22 @@ import sys
 from pathlib import Path
 
 from generators import config as gconfig
-from generators import locks as glocks
 from generators import property_test as gproperty
-from generators import report as greport
 from generators import engines as gengines
 from generators import ensemble as gensemble
-from generators import launch as glaunch
-from generators import scales as gscales
 from generators import scenes as gscenes
 from generators import sweep as gsweep
 from generators.packing import packing_key
 from generators.scene import EXECUTION_KEYS, SURROGATE_KEYS
+
+# The workflow's own helpers (launcher, locks, report guard, scale stamps) are workflow/graphdem_workflow/, not
+# part of the installed packages: only this Snakefile uses them.
+if workflow.basedir not in sys.path:
+    sys.path.insert(0, workflow.basedir)
+from graphdem_workflow import launch as glaunch
+from graphdem_workflow import locks as glocks
+from graphdem_workflow import report as greport
+from graphdem_workflow import scales as gscales
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
@@ -80,7 +85,7 @@ wildcard_constraints:
 def report_category(wildcards) -> str:
     """A result's category in snakemake --report: its scene or public benchmark (the subcategory is the
     stage). Snakemake calls this only while it builds a report, before adding the first result, so it
-    first refuses a report whose jobs never ran under the report's config (generators/report.py)."""
+    first refuses a report whose jobs never ran under the report's config (workflow/graphdem_workflow/report.py)."""
     greport.check(workflow.dag)
     return getattr(wildcards, "scene", None) or wildcards.name
 
@@ -92,7 +97,7 @@ def _json(value) -> str:
 def kept_scale(wildcards) -> list[str]:
     """Input function of the stages that start a scene's results (sweep, prepare, simulate, also of the
     cross-check's runs) or a benchmark's (import): no input, but refuses a run at another scale than the
-    scene's or benchmark's results folder records (generators/scales.py), before anything runs."""
+    scene's or benchmark's results folder records (workflow/graphdem_workflow/scales.py), before anything runs."""
     name = getattr(wildcards, "scene", None) or getattr(wildcards, "bench", None) or run_scene(wildcards)
     folder = f"results/{name}"
     gscales.check(folder, CFG["scale"], CFG["overwrite_scale"])

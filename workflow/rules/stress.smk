@@ -1,5 +1,5 @@
 # Stage stress: a stress observable predicted, for every scene whose section has a stress_readout (the shear test;
-# docs/scenes/shear.md, "The predicted shear stress"). A pair-force readout (surrogate/stress.py) is fitted to the
+# docs/scenes/shear.md, "The predicted shear stress"). A pair-force readout (evaluation/shear_stress.py) is fitted to the
 # train sims' DEM frames and their shear_stress observable, chosen on valid; stress.csv reads the test sims' stress
 # from the DEM's frames, Graph-DEM's rollouts and constant velocity with it, beside the DEM's observable and its
 # first DEM ensemble member's (the chaos).

@@ -82,7 +82,7 @@ def test_trigger_makes_a_weak_layer(tiny):
 
 
 def _simulate_cli(row, packing, out):
-    return subprocess.run([sys.executable, "-m", "surrogate.cli", "simulate", "--scene", "slide",
+    return subprocess.run([sys.executable, "-m", "graphdem", "simulate", "--scene", "slide",
                            "--sim", json.dumps(row), "--packing", str(packing), "--out", str(out)],
                           capture_output=True, text=True)
 

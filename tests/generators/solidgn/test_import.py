@@ -9,7 +9,7 @@ import pytest
 
 from generators import h5md
 from generators.solidgn import convert, safe_pickle
-from surrogate import cli
+from graphdem import cli
 
 SOURCE = Path(__file__).resolve().parents[4] / "shared" / "datasets" / "solidgn"
 

@@ -1,0 +1,143 @@
+"""`graphdem evaluate` (rollout MSE and scene metrics of a checkpoint beside constant velocity and the DEM
+ensemble, evaluation/evaluate.py) and `graphdem combine` (stack its tables)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from evaluation.commands import metric_options
+from surrogate.commands import options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
+                       description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
+                                   "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
+                                   "where the scene is known, beside a constant-velocity baseline and, with "
+                                   "--ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of "
+                                   "the test-set mean curve (acc_percent), beside the pooled one "
+                                   "(acc_pooled_percent). The sims are --data, or one split of a --splits table. "
+                                   "Several --checkpoint: their ensemble is scored as Graph-DEM.")
+    options.checkpoint_and_data(p, data_required=False, ensemble=True)
+    p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
+    p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
+                   help="which split the sims are (with --data) or which to take from --splits; auto: test where "
+                        "the table has one, else valid (said in every output)")
+    p.add_argument("--history", type=int, nargs="+", required=True,
+                   help="K of each protocol: frames given from the data and not scored; at least the history "
+                        "length the checkpoint reads (more: each step still reads its last frames). Several K: "
+                        "one table with a row set per K (the history column), plots of all, the GIF of the first")
+    p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
+    p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
+    p.add_argument("--table-html", type=Path,
+                   help="metrics CSV as an HTML table whose empty cells say n/a or undefined and why (the report's)")
+    p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
+    p.add_argument("--ensemble", type=Path, nargs="+",
+                   help="the DEM ensemble's member folders, <sim id>.h5 per sim in each: the sim rerun by its engine "
+                        "from its own state at the last given frame, perturbed; scored member by member (method "
+                        "dem_ensemble) and as the members' mean (dem_ensemble_mean), and their spread is the unit "
+                        "of every method's error_in_spreads")
+    p.add_argument("--intervals-json", type=json.loads, default=None,
+                   help='the bootstrap of every figure\'s interval, {"samples": N, "level": L, "seed": S} (default: '
+                        "the config's intervals)")
+    metric_options.scene_metric_options(p)
+    p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
+    p.add_argument("--animate", help="sim id to animate (default: the first)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run_evaluate)
+
+    p = sub.add_parser("combine", help="stack CSV tables of the same columns (e.g. one per protocol)")
+    p.add_argument("--tables", type=Path, nargs="+", required=True)
+    p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=run_combine)
+
+
+def run_evaluate(args) -> None:
+    from evaluation import evaluate
+    options.log_to_stderr()
+    split, data, note = _split(args)
+    if note:
+        print(f"NOTE: {note}")
+    if args.rollouts is not None and len(args.history) > 1:
+        raise SystemExit("graphdem evaluate: --rollouts holds rollouts of one K; give one --history with it")
+    table, steps, sims = _protocols(args, split, data, note)
+    evaluate.write(table, steps, args.out, args.per_step)
+    scene = str(table["scene"].iloc[0])
+    name = str(sims[0].traj.parameters.get("dataset", scene))
+    if args.table_html:
+        from evaluation import metrics_table
+        metrics_table.write(args.out, args.table_html, f"{name}: Graph-DEM, constant velocity"
+                            + (" and the DEM ensemble" if args.ensemble else "") + f" on the {split} sims")
+    if args.plots:
+        _plots(args, steps, sims, name, split, nominal_time=scene == "solidgn")
+
+
+def _split(args) -> tuple[str, list, str]:
+    """The split scored, the sims (--data, or the split's rows of --splits) and a note on the choice."""
+    import pandas as pd
+
+    from evaluation import evaluate
+    if (args.data is None) == (args.splits is None):
+        raise SystemExit("graphdem evaluate: give either --data (H5MD files or folders) or --splits (a split table)")
+    if args.splits is not None:
+        return evaluate.evaluation_split(pd.read_csv(args.splits), args.split)
+    if args.split == "auto":
+        raise SystemExit("graphdem evaluate: --split auto needs --splits; with --data name the split "
+                         "(test or valid)")
+    return args.split, args.data, ""
+
+
+def _protocols(args, split: str, data, note: str):
+    """One protocol per K of --history, stacked (the ``history`` column tells them apart): the metrics, the
+    per-step table, and the first protocol's sims."""
+    import pandas as pd
+
+    from evaluation import evaluate
+    tables, per_step, first = [], [], None
+    for k in args.history:
+        table, steps, sims = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
+                                               body_displacement=args.body_displacement, frames=args.frames,
+                                               ensemble_dir=args.ensemble,
+                                               threads=args.threads, progress=not args.no_progress, split=split,
+                                               split_note=note, runtime=options.runtime_config(args),
+                                               allow_other_scene=args.allow_other_scene, device=args.device,
+                                               intervals=metric_options.intervals(args))
+        tables.append(table)
+        per_step.append(steps)
+        first = first or sims
+        print(f"K = {k}:\n{evaluate.report(table)}")
+    return pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first
+
+
+def _plots(args, steps, sims, name: str, split: str, nominal_time: bool) -> None:
+    """--plots: the metrics over the frames, and the GIF of --animate (or the first sim) beside the DEM.
+    ``nominal_time``: the sims store a nominal dt (Solid-GN), frames are the honest axis."""
+    from evaluation import evaluate, plots
+    ks = ", ".join(str(k) for k in args.history)
+    plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
+                              f"{name}: mean over {len(sims)} {split} sims, K = {ks}"
+                              + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
+                              x="tau" if nominal_time else "time")
+    pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
+    if pick is None:
+        return
+    t = pick.traj
+    names = {int(k): v for k, v in dict(t.parameters.get("species_names") or {}).items()}
+    truth, pred, radius = pick.truth, pick.predictions[evaluate.MODEL], t.radius
+    title = f"{name} {pick.id}: DEM (left) and Graph-DEM (right)"
+    if truth.shape[-1] == 3:           # a 3D scene: the section by its split plane (shear box)
+        height = float(t.parameters.get("split_height", 0.5 * (t.box_lower[2] + t.box_upper[2])))
+        (truth, radius_truth), (pred, radius_pred) = (plots.plane_section(p, radius, height) for p in (truth, pred))
+        radius = (radius_truth, radius_pred)
+        title += f"\nsection z = {1000 * height:.1f} mm (the box's split plane), seen from above"
+    plots.animation(Path(args.plots) / "rollout.gif", truth, pred, radius, t.species, t.time,
+                    t.box_lower[:2], t.box_upper[:2], args.history[0], title, names)
+
+
+def run_combine(args) -> None:
+    from evaluation.evaluate import combine
+    table = combine(args.tables, union=args.union)
+    options.write_table(table, args.out)
+    print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
