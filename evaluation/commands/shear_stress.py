@@ -48,11 +48,11 @@ def run_readout(args) -> None:
     from generators import h5md
     options.log_to_stderr()
     splits = pd.read_csv(args.splits)
-    samples = {split: [shear_stress.Sample.from_trajectory(h5md.read(p)) for p in splits.loc[splits["split"] == split,
-                                                                                     "path"]]
+    samples = {split: [shear_stress.Sample.from_trajectory(h5md.read(p))
+                       for p in splits.loc[splits["split"] == split, "path"]]
                for split in ("train", "valid")}
     model, meta, history = shear_stress.fit(samples["train"], samples["valid"], args.settings_json,
-                                      progress=not args.no_progress, threads=args.threads)
+                                            progress=not args.no_progress, threads=args.threads)
     options.write_table(history, args.history)
     shear_stress.save(args.out, model, meta)
     print(f"stress readout: valid MSE of tau / sigma_n {meta['valid_mse']:.4g} (epoch {meta['epoch']}), "
@@ -63,7 +63,7 @@ def run_test(args) -> None:
     from evaluation import plots, shear_stress_check
     from surrogate import provenance
     table, curves = shear_stress_check.run(args.readout, args.sims, args.rollouts, provenance.digest(args.checkpoint),
-                                    args.history, args.tolerance, args.ensemble)
+                                           args.history, args.tolerance, args.ensemble)
     if args.plot:
         plots.stress_curves(curves, table, args.history, args.plot, args.title or "shear stress")
     options.write_table(table, args.out)

@@ -114,7 +114,7 @@ def test_the_dem_chaos_is_the_change_between_a_sim_and_its_ensemble_rerun(tmp_pa
     h5md.write(tmp_path / "sims" / "s_0.h5", trajectory(0.0, 3e7))
     h5md.write(tmp_path / "ensemble" / "s_0.h5", trajectory(-2.5e-7, 3e7))   # 1 um behind at the last frame
     table, _ = property_sensitivity.run((low, high), ["s_0"], "young", SHA, K, 0.25,
-                                 chaos=(tmp_path / "sims", tmp_path / "ensemble"))
+                                        chaos=(tmp_path / "sims", tmp_path / "ensemble"))
     row = table.set_index("sim").loc["s_0"]
     assert row["chaos_delta"] == pytest.approx(1e-6, abs=UM) and row["signal_to_chaos"] == pytest.approx(8.0, rel=0.05)
 

@@ -88,7 +88,7 @@ def test_the_command_writes_the_table(untrained, tmp_path, capsys):
     checkpoint.save(path, {"model": simulator.state_dict(),
                            "json": {"stats": simulator.stats, "model": simulator.model_config}})
     memory.main(["--checkpoint", str(path), "--device", "cpu", "--start", "50", "--max-particles", "100",
-                       "--out", str(tmp_path / "memory.csv")])
+                 "--out", str(tmp_path / "memory.csv")])
     table = pd.read_csv(tmp_path / "memory.csv")
     assert table["particles"].tolist() == [50, 100] and table["fits"].all()
     assert list(table.columns) == memory.COLUMNS
