@@ -32,7 +32,7 @@ __all__ = ["DOCUMENTS", "Outcome", "check", "code_hash", "documents", "plan", "w
 # The markdown files whose tables are generated, as glob patterns under the root (the repository).
 DOCUMENTS = ("*.md", "docs/**/*.md")
 RESULTS = "results"                 # the results folder under the root
-CODE_ROOT = Path(__file__).resolve().parents[2]     # holds the packages surrogate/ and generators/
+CODE_ROOT = Path(__file__).resolve().parents[2]     # holds the packages generators/, surrogate/, evaluation/
 DIGITS = 12                         # hex digits of the stamp's hashes
 
 

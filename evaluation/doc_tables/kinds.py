@@ -3,7 +3,7 @@
 A table named ``<subject>-<kind>`` (``slide-metrics``, ``slide_samer-card``) is kind ``<kind>`` of
 ``results/<subject>/``: every scene and public benchmark gets one without code of its own. A kind also names
 its ``sources``, the files whose code computes its CSV's numbers (glob patterns relative to the folder that
-holds the ``surrogate`` and ``generators`` packages); a stamp's code hash covers them, so
+holds the ``generators``, ``surrogate`` and ``evaluation`` packages); a stamp's code hash covers them, so
 ``graphdem tables --check`` flags the table after any of them changed. The code that only lays the table out
 (this module) is not among them: a change of layout is rewritten by ``--write`` from the same CSV.
 
