@@ -100,7 +100,9 @@ def _shown(path: Path, root: Path) -> str:
 
 
 def provenance(table, csv: Path, root: Path, code: str, previous: Stamp | None) -> Stamp:
-    """The stamp of a table generated now from ``csv``: its data hash, recorded commit and config, the code hash
+    """The stamp of a table generated now from ``csv`` (named relative to ``root``, the folder that holds the
+    results folder, so that a table written from a run in another folder names ``results/<name>/...``): its data
+    hash, recorded commit and config, the code hash
     (the previous stamp's where the CSV is unchanged since: its numbers are still that code's), machine, date."""
     import datetime
 
@@ -136,7 +138,7 @@ def regenerate(block: Block, root: Path, results: Path, kinds: Mapping[str, Kind
                          f"({block.where}) needs")
     previous, old_table = blocks.split_body(block.body)
     current = code_hash(kind, code_root)
-    stamp = provenance(table, csv, root, current, previous)
+    stamp = provenance(table, csv, Path(results).parent, current, previous)
     text = kind.render(table)
     same = previous is not None and previous.key() == stamp.key() and old_table == text.strip()
     body = block.body if same else blocks.body(stamp, text)
