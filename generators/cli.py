@@ -218,8 +218,12 @@ def cmd_transfer(args) -> None:
 
 def cmd_physics(args) -> None:
     from generators import h5md
+    scene = scenes.get(args.scene)
+    if not scene.has_physics:
+        have = [n for n, s in scenes.registry().items() if s.has_physics]
+        raise ValueError(f"the {scene.name} scene has no physics check; scenes with one: {', '.join(have) or 'none'}")
     trajectories = [h5md.read(p) for p in args.data]
-    table = scenes.get(args.scene).physics(trajectories, Path(args.out), Path(args.plot))
+    table = scene.physics(trajectories, Path(args.out), Path(args.plot))
     print(table.to_string(index=False))
 
 

@@ -138,7 +138,8 @@ class Scene(ABC):
     def setup(self, p: dict, name: str, particles: dem.Particles, step: tuple[float, float, float], bounds,
               schedule, **extra) -> dem.Setup:
         """A Setup of this scene from section or row ``p``: ``step`` is (dt, stable limit, kn), ``bounds``
-        (lower, upper) the domain, ``schedule(dt)`` the Settle or Record; ``extra`` the other Setup fields."""
+        (lower, upper) the domain, ``schedule(dt)`` the Settle or RecordingSchedule; ``extra`` the other Setup
+        fields."""
         dt, limit, kn = step
         return dem.Setup(
             name=name, particles=particles, nominal_radius=0.5 * (p["radius"][0] + p["radius"][1]),
@@ -184,10 +185,14 @@ class Scene(ABC):
 
     def physics(self, trajectories: list, out_csv, out_png):
         """The scene's check of its DEM data against published physics (the physics stage): a table
-        written to ``out_csv`` and a plot to ``out_png``. Scenes without one refuse by name."""
-        from generators import scenes
-        have = [n for n, s in scenes.registry().items() if type(s).physics is not Scene.physics]
-        raise ValueError(f"the {self.name} scene has no physics check; scenes with one: {', '.join(have) or 'none'}")
+        written to ``out_csv`` and a plot to ``out_png``. Scenes without one refuse by name
+        (:func:`has_physics` tells which have one)."""
+        raise ValueError(f"the {self.name} scene has no physics check")
+
+    @property
+    def has_physics(self) -> bool:
+        """Whether the scene overrides :meth:`physics` with a check of its own."""
+        return type(self).physics is not Scene.physics
 
     @property
     def engines(self) -> tuple[str, ...]:

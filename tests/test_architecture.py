@@ -208,16 +208,15 @@ def _reach(graph: dict[str, set[str]], start: str) -> set[str]:
 def test_the_module_import_graph_has_no_circle():
     """Module-level imports form no circle, and no function-level import closes one that a module-level import
     opens (a circle hidden by importing inside a function, as the config loader, the scenes and the property
-    test had through ConfigError: it lives in generators/errors.py). The one deliberate exception:
-    Scene.physics' default names the scenes that have a physics check, through the registry that imports the
-    Scene class."""
+    test had through ConfigError: it lives in generators/errors.py; and as Scene.physics' default did to name the
+    scenes that have a physics check: the physics command names them now)."""
     top, local = _import_graph()
     assert {"generators.config", "generators.errors", "generators.scene", "generators.engines",
             "surrogate.commands.train", "evaluation.commands.evaluate", "graphdem.cli"} <= set(top)
     list(graphlib.TopologicalSorter(top).static_order())          # raises CycleError on a circle
     full = {name: top[name] | local[name] for name in top}
     circles = {frozenset({a, b}) for a in full for b in local[a] if a in _reach(full, b)}
-    assert circles == {frozenset({"generators.scene", "generators.scenes"})}
+    assert circles == set()
 
 
 @pytest.mark.engine

@@ -54,3 +54,11 @@ def test_every_subcommand_refuses_an_output_that_is_an_input(tmp_path, capsys, m
     monkeypatch.chdir(tmp_path)
     assert "would overwrite the input" in refused(argv, capsys)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_physics_check_of_a_scene_without_one_is_refused_naming_those_with_one(tmp_path, capsys):
+    code = cli.main(["physics", "--scene", "slide", "--data", str(tmp_path / "a.h5"), "--out",
+                     str(tmp_path / "out.csv"), "--plot", str(tmp_path / "out.png")])
+    err = capsys.readouterr().err
+    assert code == 1 and "the slide scene has no physics check; scenes with one: collapse" in err
+    assert not (tmp_path / "out.csv").exists()
