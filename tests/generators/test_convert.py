@@ -1,0 +1,83 @@
+"""Convert a raw run folder into H5MD: a hand-written LAMMPS folder of a collapse sim (a fixed floor disc and two
+grains over three frames) comes out with the dumped positions, the fixed disc where the data file puts it, the
+record's parameters, properties and observables, and a folder the file cannot be made from is refused by name."""
+
+import numpy as np
+import pytest
+
+from generators import convert, h5md, record
+from generators.scenes import collapse
+
+from .lammps.raw import write_run
+
+X = np.array([[0.002, 0.002], [0.01, 0.0065], [0.014, 0.0085]])
+RADIUS = np.array([0.002, 0.0018, 0.0022])
+SPECIES = np.array([collapse.FLOOR, collapse.GRAIN, collapse.GRAIN])
+MASS = np.array([0.0, 0.027, 0.040])
+STEPS = [0, 50, 100]
+DT = 2e-5
+# the grains slide along +x by 1 mm a frame
+MOVING = np.stack([X[1:] + [1e-3 * k, 0.0] for k in range(3)])
+
+
+def _record(**extra) -> record.SimRecord:
+    run = record.EngineRun("lammps", "29 Sep 2021 - Update 2", "lmp -in in.lammps", 2.0, ranks=1)
+    fields = dict(scene="collapse", params={"id": "collapse_0001", "friction": 0.5, "aspect": 1.0}, run=run, dt=DT,
+                  dt_limit=1e-4, steps_per_frame=50, record_start_step=0, n_steps=100, window_steps=100,
+                  frame_interval=50 * DT, packing="p0", box_lower=[0.0, 0.0], box_upper=[0.1, 0.05],
+                  contact_model="linear", parameters={"floor_top": 0.004}, properties={"friction": 0.5},
+                  log_scaled_properties=[], kinetic_energy=[0.0, 1e-6, 2e-6], observables={"front": [1.0, 2.0, 3.0]})
+    fields.update(extra)
+    return record.SimRecord(**fields)
+
+
+def _raw(tmp_path, rec=None, moving=MOVING):
+    raw = tmp_path / "raw"
+    write_run(raw, X, RADIUS, SPECIES, MASS, STEPS, moving)
+    record.write(raw / record.RUN_FILE, rec or _record())
+    return raw
+
+
+def test_a_raw_folder_becomes_the_trajectory_it_recorded(tmp_path):
+    traj = h5md.read(convert.convert(_raw(tmp_path), tmp_path / "sim.h5"))
+    np.testing.assert_allclose(traj.position[:, 1:], MOVING, rtol=1e-6)     # float32 of the dumped values
+    np.testing.assert_allclose(traj.position[:, 0], np.repeat(X[:1], 3, axis=0), rtol=1e-6)
+    np.testing.assert_array_equal(traj.kinematic, [True, False, False])       # the collapse floor is kinematic
+    np.testing.assert_array_equal(traj.step, STEPS)
+    np.testing.assert_allclose(traj.time, np.array(STEPS) * DT)
+    np.testing.assert_allclose(traj.radius, RADIUS)
+    np.testing.assert_allclose(traj.mass, MASS)
+    np.testing.assert_array_equal(traj.box_upper, [0.1, 0.05])
+    assert traj.boundary == ("none", "none")
+    assert traj.property_names == ("friction",)
+    np.testing.assert_allclose(traj.properties, np.full((3, 1), 0.5))
+
+
+def test_parameters_and_observables_come_from_the_run_record(tmp_path):
+    traj = convert.trajectory(_raw(tmp_path))
+    p = traj.parameters
+    assert p["id"] == "collapse_0001" and p["friction"] == 0.5 and p["floor_top"] == 0.004
+    assert p["scene"] == "collapse" and p["engine"] == "lammps" and p["engine_version"] == "29 Sep 2021 - Update 2"
+    assert p["dem_time_step"] == DT and p["steps_per_frame"] == 50 and p["frame_interval"] == 50 * DT
+    assert p["species_names"] == {"0": "floor", "1": "grain"} and "log_scaled_properties" not in p
+    np.testing.assert_array_equal(traj.observables["kinetic_energy"], [0.0, 1e-6, 2e-6])
+    np.testing.assert_array_equal(traj.observables["front"], [1.0, 2.0, 3.0])
+    # a kinetic energy of another length than the frames is left out, not stored misaligned
+    short = convert.trajectory(_raw(tmp_path / "short", _record(kinetic_energy=[0.0, 1.0])))
+    assert "kinetic_energy" not in short.observables
+
+
+def test_a_folder_the_file_cannot_be_made_from_is_refused_by_name(tmp_path):
+    with pytest.raises(h5md.H5MDError, match=r"observable 'front' has 2 values for 3 frames"):
+        convert.trajectory(_raw(tmp_path / "a", _record(observables={"front": [1.0, 2.0]})))
+    packing = record.PackingRecord("collapse", {}, _record().run, DT, 1e-4, 10, 2, 1)
+    raw = _raw(tmp_path / "b")
+    record.write(raw / record.RUN_FILE, packing)
+    with pytest.raises(record.RecordError, match="a packing record, not a simulation's"):
+        convert.trajectory(raw)
+    # a grain missing from the frames dump: the fixed floor is taken from the data file, a grain never is
+    lost = tmp_path / "c" / "raw"
+    write_run(lost, X, RADIUS, SPECIES, MASS, STEPS, MOVING[:, :1], dumped=np.array([False, True, False]))
+    record.write(lost / record.RUN_FILE, _record())
+    with pytest.raises(h5md.H5MDError, match="did not record every moving particle \\(1 missing\\)"):
+        convert.trajectory(lost)
