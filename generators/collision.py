@@ -34,14 +34,14 @@ def collision_setup(c: dem.Contact, radius: float, density: float, dim: int, dt:
         name="collision", particles=dem.Particles(x, np.full(2, radius), np.zeros(2, int)), nominal_radius=radius,
         kinematic_species=(), n_species=1, density=density, gravity=0.0, contact=c, dt=dt,
         dt_limit=contact.stable_time_step(mass, c.kn), lower=np.full(dim, -span), upper=np.full(dim, span),
-        max_overlap=1.0, schedule=dem.Record(start=10 * every, every=every, frames=2), velocity=velocity)
+        max_overlap=1.0, schedule=dem.RecordingSchedule(start=10 * every, every=every, frames=2), velocity=velocity)
 
 
 def restitution(engine_name: str, c: dem.Contact, radius: float, density: float, dim: int, dt: float,
                 speed: float, workdir: Path) -> float:
     """Rebound over impact speed of the collision, measured by ``engine_name``'s driver."""
     setup = collision_setup(c, radius, density, dim, dt, speed)
-    frames, _ = engines.driver(engine_name).record(setup, Path(workdir))
+    frames, _ = engines.driver(engine_name).run_recording(setup, Path(workdir))
     x = np.asarray(frames.position, np.float64)[:, :, 0]
     elapsed = float(frames.time[1] - frames.time[0])
     rebound = ((x[1, 1] - x[1, 0]) - (x[0, 1] - x[0, 0])) / elapsed

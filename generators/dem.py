@@ -108,7 +108,7 @@ class Settle:
 
 
 @dataclass(frozen=True)
-class Record:
+class RecordingSchedule:
     """Run ``start`` steps unrecorded, then record ``frames`` frames ``every`` steps apart
     (frame 0 at step ``start``)."""
 
@@ -119,7 +119,7 @@ class Record:
 
 @dataclass(frozen=True)
 class Perturbation:
-    """A displacement of the particles right after frame ``frame`` of a Record schedule is recorded: every
+    """A displacement of the particles right after frame ``frame`` of a RecordingSchedule is recorded: every
     particle moves by its row of ``displacement`` [N, D] (m; kinematic particles' rows are zero), and the run
     goes on from there with the velocities, rotations and contact history it had (a DEM ensemble member,
     generators/ensemble.py). Frames 0..frame are the unperturbed run's."""
@@ -153,7 +153,7 @@ class Setup:
     lower: np.ndarray
     upper: np.ndarray
     max_overlap: float
-    schedule: Settle | Record
+    schedule: Settle | RecordingSchedule
     species_contacts: dict[int, Contact] = field(default_factory=dict)
     walls: tuple[PlanarWall, ...] = ()
     motions: tuple[Motion, ...] = ()
@@ -165,8 +165,8 @@ class Setup:
     platen: Platen | None = None
     force_groups: tuple[str, ...] = ()       # groups whose summed contact force each frame reports (Frames), the
     force_samples: int = 1                   # mean over this many equally spaced steps of the frame interval,
-                                             # the last at the frame (a divisor of Record.every)
-    perturbation: Perturbation | None = None  # displace the particles after a recorded frame (Record only)
+                                             # the last at the frame (a divisor of RecordingSchedule.every)
+    perturbation: Perturbation | None = None  # displace the particles after a recorded frame (RecordingSchedule only)
 
     @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -208,12 +208,12 @@ class UnsupportedSetup(ValueError):
 
 def checked_perturbation(setup: Setup) -> Perturbation | None:
     """The Setup's Perturbation, refused by name where no engine can apply it: a frame that is not followed by
-    another of the Record schedule, a displacement of another shape than the particles', or one that moves a
+    another of the RecordingSchedule, a displacement of another shape than the particles', or one that moves a
     kinematic particle."""
     p = setup.perturbation
     if p is None:
         return None
-    frames = setup.schedule.frames if isinstance(setup.schedule, Record) else 0
+    frames = setup.schedule.frames if isinstance(setup.schedule, RecordingSchedule) else 0
     if not 0 <= p.frame < frames - 1:
         raise UnsupportedSetup(f"{setup.name}: a perturbation after frame {p.frame}; it must come after one of "
                                f"frames 0..{frames - 2} of a recorded run of {frames} frames")

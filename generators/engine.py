@@ -86,7 +86,7 @@ def simulate(scene: Scene, row: dict, packing_dir: Path, out_dir: Path, ranks: i
     schedule = setup.schedule
     with atomic_path(out_dir) as tmp:
         tmp.mkdir()
-        frames, run = runner.record(setup, tmp, ranks=ranks, threads=threads)
+        frames, run = runner.run_recording(setup, tmp, ranks=ranks, threads=threads)
         blowup.check_trajectory(setup.name, frames.position, frames.radius, setup.kinematic,
                                 np.asarray(setup.lower), np.asarray(setup.upper), setup.max_overlap)
         if setup.max_energy_gain is not None:

@@ -10,7 +10,7 @@ engines (generators/scene.py), the workflow's engine wildcard and cross-check ru
 What a driver module provides:
 
 - ``settle(setup, workdir, ranks=1, threads=1)`` -> (dem.Particles, record.EngineRun);
-- ``record(setup, workdir, ranks=1, threads=1)`` -> (dem.Frames, record.EngineRun);
+- ``run_recording(setup, workdir, ranks=1, threads=1)`` -> (dem.Frames, record.EngineRun);
 - ``read_raw(raw_dir, dt)`` -> the run folder's frames again (generators/convert.py);
 - ``CONTACT_MODEL``: the contact law's description in every sim's run record;
 - ``PARALLEL``: how the engine takes more cores, ``"ranks"`` (MPI ranks, the scene's ``ranks`` key) or
@@ -39,7 +39,7 @@ def names() -> list[str]:
 
 
 def driver(name: str) -> ModuleType:
-    """The driver module of engine ``name`` (settle, record, read_raw, CONTACT_MODEL, PARALLEL, ERRORS)."""
+    """The driver module of engine ``name`` (settle, run_recording, read_raw, CONTACT_MODEL, PARALLEL, ERRORS)."""
     if name not in NAMES:
         raise ValueError(f"unknown engine {name!r}; known: {', '.join(NAMES)}")
     return importlib.import_module(f"generators.{name}.driver")

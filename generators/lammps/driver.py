@@ -1,7 +1,7 @@
 """The LAMMPS driver: runs any scene's Setup (generators/dem.py) that LAMMPS supports.
 
-``settle`` writes the deck of a Settle schedule and returns the settled particles; ``record`` writes
-the deck of a Record schedule and returns the recorded frames; ``read_raw`` reads a recorded run's
+``settle`` writes the deck of a Settle schedule and returns the settled particles; ``run_recording`` writes
+the deck of a RecordingSchedule and returns the recorded frames; ``read_raw`` reads a recorded run's
 folder again (convert). Supported: 2D discs of unit thickness (``fix enforce2d``) and 3D spheres,
 kinematic species (fixed, or moved at constant velocity by a Motion: ``fix move linear``), planar
 walls, per-species contact overrides, initial velocities, gravity tilted for an incline, viscous
@@ -78,8 +78,8 @@ def settle(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) ->
         _engine_run(run, workdir / "log.lammps")
 
 
-def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
-    """Run ``setup`` (a Record schedule) in ``workdir`` on ``ranks`` MPI ranks; blow-ups reported by LAMMPS
+def run_recording(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
+    """Run ``setup`` (a RecordingSchedule) in ``workdir`` on ``ranks`` MPI ranks; blow-ups reported by LAMMPS
     raise BlowUp."""
     _one_thread(setup, threads)
     workdir = Path(workdir)

@@ -199,11 +199,12 @@ class Collapse(Scene):
         grains = packing.subset(packing.species == GRAIN)
         particles = floor_particles(row, upper[0]).concat(grains)
 
-        def record(dt: float) -> dem.Record:
-            return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
+        def schedule(dt: float) -> dem.RecordingSchedule:
+            every = max(1, int(round(row["frame_interval"] / dt)))
+            return dem.RecordingSchedule(start=0, every=every, frames=row["frames"])
 
         return self.setup(row, row["id"], particles, contact.time_step(row, row["id"], self.dim), (np.zeros(2), upper),
-                          record, walls=(dem.PlanarWall(0, 0.0, float(upper[0])),),
+                          schedule, walls=(dem.PlanarWall(0, 0.0, float(upper[0])),),
                           max_energy_gain=row["max_energy_gain"])
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:

@@ -270,11 +270,12 @@ class Meteorite(Scene):
         initial = np.zeros_like(particles.x)
         initial[particles.species == METEORITE] = velocity
 
-        def record(dt: float) -> dem.Record:
-            return dem.Record(start=0, every=max(1, int(round(row["frame_interval"] / dt))), frames=row["frames"])
+        def schedule(dt: float) -> dem.RecordingSchedule:
+            every = max(1, int(round(row["frame_interval"] / dt)))
+            return dem.RecordingSchedule(start=0, every=every, frames=row["frames"])
 
-        return self.setup(row, row["id"], particles, contact.time_step(row, row["id"], self.dim), _bounds(row), record,
-                          velocity=initial, max_energy_gain=row["max_energy_gain"], walls=_walls(row))
+        return self.setup(row, row["id"], particles, contact.time_step(row, row["id"], self.dim), _bounds(row),
+                          schedule, velocity=initial, max_energy_gain=row["max_energy_gain"], walls=_walls(row))
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         launch = setup.velocity[setup.particles.species == METEORITE][0]

@@ -330,7 +330,7 @@ class Shear(Scene):
         platen = dem.Platen(PLATEN_GROUP, float(row["platen_mass"]), platen_force(row), axis=2,
                             ramp=max(1, start // 2))
         return self.setup(row, row["id"], loaded(packing, row), step, domain(row, row["displacement"]),
-                          lambda dt: dem.Record(start=start, every=every, frames=row["frames"]),
+                          lambda dt: dem.RecordingSchedule(start=start, every=every, frames=row["frames"]),
                           motions=(dem.Motion(LOWER, (speed, 0.0, 0.0), from_record=True),), platen=platen,
                           force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
                           box_upper=box_upper)

@@ -216,14 +216,14 @@ class Slide(Scene):
         species = assign_layers(packing, row["weak_base"], row["weak_thickness"], row["weak_dip"])
         particles = dem.Particles(packing.x, packing.radius, species)
 
-        def record(dt: float) -> dem.Record:
+        def schedule(dt: float) -> dem.RecordingSchedule:
             every = max(1, int(round(row["frame_interval"] / dt)))
-            return dem.Record(start=every * int(round(row["record_start"] / (every * dt))), every=every,
-                              frames=row["frames"])
+            return dem.RecordingSchedule(start=every * int(round(row["record_start"] / (every * dt))), every=every,
+                                         frames=row["frames"])
 
         step = contact.time_step(row, row["id"], self.dim)
         weak = self.contact(row, step[2], row["weak_friction"], row["weak_rolling_friction"])
-        return self.setup(row, row["id"], particles, step, _bounds(row), record,
+        return self.setup(row, row["id"], particles, step, _bounds(row), schedule,
                           max_energy_gain=row["max_energy_gain"], species_contacts={WEAK: weak})
 
     def particle_estimate(self, cfg: dict) -> int:

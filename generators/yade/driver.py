@@ -128,7 +128,7 @@ def _force_samples(setup: dem.Setup) -> int:
     return int(setup.force_samples)
 
 
-def record(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
+def run_recording(setup: dem.Setup, workdir: Path, ranks: int = 1, threads: int = 1) -> tuple[dem.Frames, EngineRun]:
     """Move each Motion's group at its velocity, run ``start`` steps, then record every ``every`` steps, displacing
     the particles by the Setup's Perturbation right after its frame (one process: ``ranks`` must be 1; ``threads``
     OpenMP threads, YADE's ``-j``)."""

@@ -26,8 +26,8 @@ def _mass(dim: int) -> float:
     return contact.particle_mass(DENSITY, RADIUS, dim)
 
 
-def _setup(dim: int, x: np.ndarray, c: dem.Contact, schedule: dem.Record, species=None, kinematic=(), walls=(),
-           tilt: float = 0.0, span: float = 2.0) -> dem.Setup:
+def _setup(dim: int, x: np.ndarray, c: dem.Contact, schedule: dem.RecordingSchedule, species=None, kinematic=(),
+           walls=(), tilt: float = 0.0, span: float = 2.0) -> dem.Setup:
     n = len(x)
     limit = contact.stable_time_step(_mass(dim), c.kn)
     return dem.Setup(name="analytic", particles=dem.Particles(np.asarray(x, float), np.full(n, RADIUS),
@@ -38,7 +38,7 @@ def _setup(dim: int, x: np.ndarray, c: dem.Contact, schedule: dem.Record, specie
 
 
 def _record(setup: dem.Setup, engine_name: str, tmp_path) -> dem.Frames:
-    frames, _ = engine.driver(engine_name).record(setup, tmp_path)
+    frames, _ = engine.driver(engine_name).run_recording(setup, tmp_path)
     return frames
 
 
@@ -55,7 +55,7 @@ def _acceleration(t: np.ndarray, x: np.ndarray) -> float:
 @pytest.mark.parametrize("dim", [2, 3])
 def test_free_fall_follows_g_t2_over_2(engine_name, dim, tmp_path):
     every = _steps(dim, 0.02)
-    setup = _setup(dim, np.zeros((1, dim)), _contact(dim), dem.Record(start=0, every=every, frames=11))
+    setup = _setup(dim, np.zeros((1, dim)), _contact(dim), dem.RecordingSchedule(start=0, every=every, frames=11))
     frames = _record(setup, engine_name, tmp_path)
     t = frames.time - frames.time[0]
     drop = frames.position[0, 0, -1] - frames.position[:, 0, -1]
@@ -89,7 +89,8 @@ def _on_incline(dim: int, friction: float, tilt: float) -> dem.Setup:
     x = np.zeros((1, dim))
     x[0, -1] = RADIUS - _mass(dim) * G * math.cos(tilt) / c.kn       # resting overlap
     wall = dem.PlanarWall(axis=dim - 1, lower=0.0, upper=None)
-    return _setup(dim, x, c, dem.Record(start=0, every=_steps(dim, 0.02), frames=16), walls=(wall,), tilt=tilt)
+    return _setup(dim, x, c, dem.RecordingSchedule(start=0, every=_steps(dim, 0.02), frames=16), walls=(wall,),
+                  tilt=tilt)
 
 
 @pytest.mark.parametrize("engine_name", ENGINES)
@@ -120,8 +121,8 @@ def test_resting_column_presses_its_base_with_its_weight(engine_name, dim, tmp_p
     overlap = np.array([(n - k) * _mass(dim) * G / _contact(dim).kn for k in range(n)])   # spring k carries n - k
     x[1:, -1] = 2.0 * RADIUS * np.arange(1, n + 1) - np.cumsum(overlap)
     species = np.r_[1, np.zeros(n, int)]
-    setup = _setup(dim, x, _contact(dim, restitution=0.2), dem.Record(start=0, every=_steps(dim, 0.05), frames=8),
-                   species=species, kinematic=(1,))
+    setup = _setup(dim, x, _contact(dim, restitution=0.2),
+                   dem.RecordingSchedule(start=0, every=_steps(dim, 0.05), frames=8), species=species, kinematic=(1,))
     frames = _record(setup, engine_name, tmp_path)
     weight = n * _mass(dim) * G
     force = frames.kinematic_force[-1]

@@ -98,7 +98,7 @@ def test_every_driver_provides_what_the_registry_asks_for():
     ranks_problem where it takes MPI ranks); an engine taking ranks reports no problem at one rank."""
     for name in engines.NAMES:
         driver = engines.driver(name)
-        assert all(callable(getattr(driver, f)) for f in ("settle", "record", "read_raw")), name
+        assert all(callable(getattr(driver, f)) for f in ("settle", "run_recording", "read_raw")), name
         assert isinstance(driver.CONTACT_MODEL, str) and driver.PARALLEL in engines.PARALLEL_KINDS, name
         assert all(issubclass(e, Exception) for e in driver.ERRORS), name
         if engines.takes_ranks(name):

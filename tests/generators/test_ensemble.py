@@ -37,7 +37,8 @@ def test_the_standard_deviation_is_the_radii_term_or_the_float32_floor_where_tha
 # ---- the draw ------------------------------------------------------------------------------------------------------
 
 
-def _particles_setup(dim: int, n: int, kinematic: int, schedule: dem.Record, spacing: float = 0.0) -> dem.Setup:
+def _particles_setup(dim: int, n: int, kinematic: int, schedule: dem.RecordingSchedule,
+                     spacing: float = 0.0) -> dem.Setup:
     """``n`` particles of radius RADIUS, the first ``kinematic`` of them fixed; 5 diameters apart in x with
     ``spacing`` = 0 (no contact), else on a square grid of that spacing above a fixed row."""
     kn = 1.0e5 if dim == 2 else 1.0e4
@@ -72,7 +73,7 @@ def _row(member: int, frame: int = 2, size: float = 1e-3, seed: int = 7) -> dict
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_the_draw_is_normal_with_the_rules_deviation_in_the_plane_and_spares_kinematic_particles(dim):
-    setup = _particles_setup(dim, 4000, 1000, dem.Record(0, 10, 4))
+    setup = _particles_setup(dim, 4000, 1000, dem.RecordingSchedule(0, 10, 4))
     drawn = ensemble.draw(setup, 1e-3, seed=7, member=0)
     assert drawn.shape == (4000, dim)                                   # 2D: in-plane only
     np.testing.assert_array_equal(drawn[:1000], 0.0)                     # the fixed ones stay
@@ -82,7 +83,7 @@ def test_the_draw_is_normal_with_the_rules_deviation_in_the_plane_and_spares_kin
 
 
 def test_the_draw_is_seeded_by_the_sims_seed_and_the_member():
-    setup = _particles_setup(2, 50, 5, dem.Record(0, 10, 4))
+    setup = _particles_setup(2, 50, 5, dem.RecordingSchedule(0, 10, 4))
     a = ensemble.draw(setup, 1e-3, seed=7, member=1)
     np.testing.assert_array_equal(a, ensemble.draw(setup, 1e-3, seed=7, member=1))
     for other in (ensemble.draw(setup, 1e-3, seed=7, member=2), ensemble.draw(setup, 1e-3, seed=8, member=1)):
@@ -95,7 +96,7 @@ def test_the_draw_is_seeded_by_the_sims_seed_and_the_member():
     (dict(displacement=np.ones((10, 2))), "moves kinematic particles"),
 ])
 def test_a_perturbation_no_engine_can_apply_is_refused_by_name(change, match):
-    setup = _particles_setup(2, 10, 2, dem.Record(0, 10, 4))
+    setup = _particles_setup(2, 10, 2, dem.RecordingSchedule(0, 10, 4))
     fields = {"frame": 1, "displacement": np.zeros((10, 2)), **change}
     with pytest.raises(dem.UnsupportedSetup, match=match):
         dem.checked_perturbation(dataclasses.replace(setup, perturbation=dem.Perturbation(**fields)))
@@ -109,7 +110,7 @@ def _run(setup: dem.Setup, engine_name: str, row: dict | None, tmp_path) -> dem.
         setup = ensemble.member_setup(setup, row)
     folder = tmp_path / f"run{len(list(tmp_path.iterdir()))}"
     folder.mkdir()
-    frames, _ = engine.driver(engine_name).record(setup, folder)
+    frames, _ = engine.driver(engine_name).run_recording(setup, folder)
     return frames
 
 
@@ -119,7 +120,7 @@ def _run(setup: dem.Setup, engine_name: str, row: dict | None, tmp_path) -> dem.
 def test_free_particles_keep_exactly_the_drawn_displacement_from_the_frame_on(engine_name, dim, tmp_path):
     """Free fall is the same motion from any start: a member's free particles are the sim's, shifted by their
     drawn displacement from frame K = 3 on (to the dump's digits), and the same before it; fixed ones never move."""
-    setup = dataclasses.replace(_particles_setup(dim, 6, 2, dem.Record(0, _every(dim), 6)),
+    setup = dataclasses.replace(_particles_setup(dim, 6, 2, dem.RecordingSchedule(0, _every(dim), 6)),
                                 velocity=np.tile([0.3, 0.2, 0.1][:dim], (6, 1)) * (np.arange(6) >= 2)[:, None])
     sim, member = _run(setup, engine_name, None, tmp_path), _run(setup, engine_name, _row(1), tmp_path)
     drawn = ensemble.member_setup(setup, _row(1)).perturbation.displacement
@@ -138,7 +139,7 @@ def test_a_member_replays_the_sim_to_its_frame_and_differs_after_it(engine_name,
     kinetic energy and the force on the fixed row at frame K-1 the unperturbed run's; every later frame differs;
     members 0 and 1 differ; member 1 run twice is the same run."""
     n_grid = 16 if dim == 2 else 27
-    setup = _particles_setup(dim, 6 + n_grid, 6, dem.Record(0, _every(dim), 8), spacing=2.05 * RADIUS)
+    setup = _particles_setup(dim, 6 + n_grid, 6, dem.RecordingSchedule(0, _every(dim), 8), spacing=2.05 * RADIUS)
     sim = _run(setup, engine_name, None, tmp_path)
     runs = [_run(setup, engine_name, _row(j, frame=3, size=1e-5), tmp_path) for j in (0, 1, 1)]
     for member in runs:

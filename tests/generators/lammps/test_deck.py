@@ -17,7 +17,7 @@ def _setup(**extra) -> dem.Setup:
     fields = dict(name="t", particles=dem.Particles(x, np.full(3, 0.01), np.array([0, 0, 1]), groups),
                   nominal_radius=0.01, kinematic_species=(0,), n_species=2, density=2650.0, gravity=9.81, contact=c,
                   dt=1e-6, dt_limit=1e-5, lower=np.full(3, -1.0), upper=np.full(3, 1.0), max_overlap=0.5,
-                  schedule=dem.Record(start=100, every=50, frames=3))
+                  schedule=dem.RecordingSchedule(start=100, every=50, frames=3))
     fields.update(extra)
     return dem.Setup(**fields)
 
@@ -50,7 +50,7 @@ def test_tilted_gravity_points_down_the_incline():
 
 def test_recording_must_start_on_a_dump_step():
     with pytest.raises(dem.UnsupportedSetup, match="not a multiple of the frame interval"):
-        deck.record_deck(_setup(schedule=dem.Record(start=120, every=50, frames=3)))
+        deck.record_deck(_setup(schedule=dem.RecordingSchedule(start=120, every=50, frames=3)))
 
 
 def _platen_setup(**extra) -> dem.Setup:
@@ -120,7 +120,7 @@ def test_a_perturbation_splits_the_window_at_its_frame_around_the_displacement(t
 def test_a_2d_perturbation_moves_in_the_plane_only():
     x = np.array([[0.0, 0.0], [0.1, 0.0]])
     setup = _setup(particles=dem.Particles(x, np.full(2, 0.01), np.array([0, 1])), lower=np.full(2, -1.0),
-                   upper=np.full(2, 1.0), schedule=dem.Record(start=0, every=50, frames=4),
+                   upper=np.full(2, 1.0), schedule=dem.RecordingSchedule(start=0, every=50, frames=4),
                    perturbation=dem.Perturbation(frame=2, displacement=np.array([[0.0, 0.0], [1e-7, 2e-7]])))
     window = deck.record_deck(setup).splitlines()[-5:]
     assert window == ["run             100", "variable        perturb_x atomfile perturbation_x.txt",

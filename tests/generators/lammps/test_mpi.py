@@ -173,7 +173,7 @@ def test_ranks_must_be_a_positive_whole_number(ranks):
 def test_yade_runs_refuse_more_than_one_rank(tmp_path):
     cfg = config.load({"scale": "ci"})["meteorite"]
     setup = meteorite.SCENE.settle_setup(meteorite.SCENE.packings(cfg)[0])
-    for run in (yade_driver.settle, yade_driver.record):
+    for run in (yade_driver.settle, yade_driver.run_recording):
         with pytest.raises(dem.UnsupportedSetup, match="ranks = 2; YADE runs one process"):
             run(setup, tmp_path, ranks=2)
     assert not any(tmp_path.iterdir())
@@ -183,7 +183,7 @@ def test_lammps_runs_refuse_threads(tmp_path):
     """More cores for LAMMPS are MPI ranks; a thread count other than 1 is refused before anything runs."""
     cfg = config.load({"scale": "ci"})["meteorite"]
     setup = meteorite.SCENE.settle_setup(meteorite.SCENE.packings(cfg)[0])
-    for run in (driver.settle, driver.record):
+    for run in (driver.settle, driver.run_recording):
         with pytest.raises(dem.UnsupportedSetup, match="threads = 2; LAMMPS runs one thread per MPI rank"):
             run(setup, tmp_path, threads=2)
     assert not any(tmp_path.iterdir())

@@ -15,7 +15,7 @@ def _setup(**extra) -> dem.Setup:
     fields = dict(name="t", particles=dem.Particles(x, np.full(2, 1.0), np.array([0, 1])), nominal_radius=1.0,
                   kinematic_species=(0,), n_species=2, density=2650.0, gravity=9.81, contact=c, dt=1e-5,
                   dt_limit=1e-4, lower=np.full(2, -10.0), upper=np.full(2, 10.0), max_overlap=0.5,
-                  schedule=dem.Record(start=0, every=10, frames=2),
+                  schedule=dem.RecordingSchedule(start=0, every=10, frames=2),
                   walls=(dem.PlanarWall(axis=1, lower=0.0, upper=5.0),))
     fields.update(extra)
     return dem.Setup(**fields)

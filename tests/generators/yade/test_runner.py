@@ -27,7 +27,7 @@ def test_two_jobs_side_by_side_start_no_server_and_agree(tmp_path):
     for d in dirs:
         d.mkdir()
     with ThreadPoolExecutor(2) as pool:
-        results = list(pool.map(lambda d: driver.record(setup, d), dirs))
+        results = list(pool.map(lambda d: driver.run_recording(setup, d), dirs))
     (frames_a, run_a), (frames_b, run_b) = results
     assert (frames_a.position == frames_b.position).all()
     for run in (run_a, run_b):
