@@ -60,7 +60,7 @@ def test_dataset_stage_outputs(workdir):
         traj = h5md.read(res / "sims" / f"{sim}.h5")
         assert traj.n_frames == 8
         assert (res / "logs" / "simulate" / f"{sim}.log").is_file()
-        assert (res / "benchmarks" / "simulate" / f"{sim}.tsv").is_file()
+        assert (res / "timings" / "simulate" / f"{sim}.tsv").is_file()
         assert (res / "raw" / sim / "in.lammps").is_file() and (res / "raw" / sim / "log.lammps").is_file()
     assert len(list((res / "packings").iterdir())) == 1        # one packing shared by all sims
 
@@ -74,7 +74,7 @@ def test_surrogate_stage_outputs(workdir):
     for sim in test_ids:
         rolled = h5md.read(res / "rollouts" / f"{sim}.h5", allow_nonfinite=True)
         assert rolled.parameters["rollout_history"] == 6 and rolled.n_frames == 8
-        assert (res / "benchmarks" / "rollout" / f"{sim}.tsv").is_file()
+        assert (res / "timings" / "rollout" / f"{sim}.tsv").is_file()
     metrics = pd.read_csv(res / "metrics.csv")
     overall = metrics[metrics["sim"] == "all"]
     assert {"rollout MSE", "Slide Num", "Max Ht", "Mean Ht", "Tongue Dis", "Dis"} <= set(overall["metric"])
@@ -82,7 +82,7 @@ def test_surrogate_stage_outputs(workdir):
     assert set(steps["tau"]) == {1, 2}
     assert (res / "plots" / "rollout.gif").stat().st_size > 10_000
     for stage in ("train", "evaluate"):
-        assert (res / "benchmarks" / f"{stage}.tsv").is_file() and (res / "logs" / f"{stage}.log").is_file()
+        assert (res / "timings" / f"{stage}.tsv").is_file() and (res / "logs" / f"{stage}.log").is_file()
 
 
 def test_seeds_stage_trains_the_other_seeds_and_reports_the_spread(workdir):
@@ -103,7 +103,7 @@ def test_seeds_stage_trains_the_other_seeds_and_reports_the_spread(workdir):
     assert mse.at["graphdem", "std"] > 0 and mse.at["graphdem", "min"] < mse.at["graphdem", "max"]
     assert mse.at["constant_velocity", "std"] == 0.0 and mse.at["dem_ensemble", "std"] == 0.0
     assert (res / "seeds" / "1" / "logs" / "train.log").is_file()
-    assert (res / "seeds" / "1" / "benchmarks" / "evaluate.tsv").is_file()
+    assert (res / "seeds" / "1" / "timings" / "evaluate.tsv").is_file()
 
 
 def test_performance_stage_outputs(workdir):
@@ -141,7 +141,7 @@ def test_performance_stage_outputs(workdir):
     assert pd.isna(table.at["article_size", "mse"]) and not table.at["article_size", "trained"]
     assert table["on_pareto_front"].fillna(False).astype(bool).any()
     assert (res / "plots" / "pareto.png").stat().st_size > 10_000
-    assert (res / "benchmarks" / "performance" / "dem_reference.tsv").is_file()
+    assert (res / "timings" / "performance" / "dem_reference.tsv").is_file()
     assert (res / "logs" / "performance" / "surrogate_graphdem.log").is_file()
 
 
@@ -194,7 +194,7 @@ def test_export_stage_writes_each_test_sim_and_its_rollout_for_paraview(workdir)
         expected = np.linalg.norm(rolled.position[-1].astype(float) - truth.position[-1].astype(float), axis=-1)
         np.testing.assert_allclose(error, expected, rtol=1e-12)
         assert error.max() > 0 and (error[truth.kinematic] == 0).all()
-    assert (res / "logs" / "export.log").is_file() and (res / "benchmarks" / "export.tsv").is_file()
+    assert (res / "logs" / "export.log").is_file() and (res / "timings" / "export.tsv").is_file()
 
 
 def test_changed_learning_rate_retrains_but_reruns_no_engine(workdir):
@@ -390,11 +390,11 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert meta["model"]["history"] == 2 and meta["model"]["properties"] == ["radius"]
     assert meta["stats"]["n_train_sims"] == 6
     assert set(table["checkpoint_sha"]) == {__import__("surrogate.checkpoint", fromlist=["digest"]).digest(best)}
-    assert (res / "benchmarks" / "train.tsv").is_file() and (res / "logs" / "train.log").is_file()
+    assert (res / "timings" / "train.tsv").is_file() and (res / "logs" / "train.log").is_file()
     steps = pd.read_csv(res / "metrics_per_step.csv")
     assert set(steps["history"]) == {2, 6}
     assert (res / "plots" / "rollout.gif").is_file() and (res / "plots" / "metrics_over_frames.png").is_file()
-    assert (res / "benchmarks" / "evaluate.tsv").is_file()
+    assert (res / "timings" / "evaluate.tsv").is_file()
     # the benchmark card over seeds 0 and 1: both methods under both protocols, the article's figures from the config
     steps = steps[steps["sim"] == "all"]
     assert sorted(steps.groupby("history")["tau"].max().items()) == [(2, 18), (6, 14)]   # each K's own mean rows
@@ -427,7 +427,7 @@ def test_slide_small_benchmark_runs_both_protocols_on_valid(tmp_path):
     assert {m: article[(m, "rollout_mse")] for m in want} == want
     text = (res / "card.md").read_text()
     assert "**valid** split" in text and "Training hardware: " in text and "| Graph-DEM |" in text
-    assert (res / "logs" / "card.log").is_file() and (res / "benchmarks" / "card.tsv").is_file()
+    assert (res / "logs" / "card.log").is_file() and (res / "timings" / "card.tsv").is_file()
 
 
 @pytest.mark.parametrize("scene, dim, n_types, metrics", [
@@ -474,7 +474,7 @@ def test_scene_outputs(ci_results, scene, dim, n_types, metrics):
     for name in ("metrics_over_frames.png", "rollout.gif", "dataset_sample.png"):
         assert (res / "plots" / name).stat().st_size > 5_000
     for rule in ("sweep", "dataset", "train", "evaluate"):
-        assert (res / "benchmarks" / f"{rule}.tsv").is_file() and (res / "logs" / f"{rule}.log").is_file()
+        assert (res / "timings" / f"{rule}.tsv").is_file() and (res / "logs" / f"{rule}.log").is_file()
     assert (res / "scale.txt").read_text() == "ci\n"         # the folder records the scale it was built at
 
 
@@ -525,7 +525,7 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
     assert meta["valid_mse"] == pytest.approx(history["valid_mse"].min())
     assert (res / "plots" / "stress.png").stat().st_size > 10_000
     for stage in ("stress_readout", "stress_test"):
-        assert (res / "logs" / f"{stage}.log").is_file() and (res / "benchmarks" / f"{stage}.tsv").is_file()
+        assert (res / "logs" / f"{stage}.log").is_file() and (res / "timings" / f"{stage}.tsv").is_file()
 
 
 def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci_results):
@@ -555,4 +555,4 @@ def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci
         assert row["dem_delta"] == pytest.approx(dem[1] - dem[0], rel=1e-6, abs=1e-12)
         assert np.isfinite(row["graphdem_delta"]) and row["chaos_delta"] >= 0
     assert (res / "plots" / "property.png").stat().st_size > 10_000
-    assert (res / "logs" / "property_test.log").is_file() and (res / "benchmarks" / "property_test.tsv").is_file()
+    assert (res / "logs" / "property_test.log").is_file() and (res / "timings" / "property_test.tsv").is_file()

@@ -24,7 +24,7 @@ rule card:
     log:
         "results/{name}/logs/card.log",
     benchmark:
-        "results/{name}/benchmarks/card.tsv"
+        "results/{name}/timings/card.tsv"
     shell:
         "graphdem card --benchmark {wildcards.name} --seeds {params.seeds:q} --metrics {input.metrics:q} "
         "--steps {input.per_step:q} --histories {input.histories:q} --stats {input.stats:q} "

@@ -7,6 +7,6 @@ rule convert:
     log:
         "results/{run}/logs/convert/{sim}.log",
     benchmark:
-        "results/{run}/benchmarks/convert/{sim}.tsv"
+        "results/{run}/timings/convert/{sim}.tsv"
     shell:
         "graphdem convert --raw {input:q} --out {output:q} > {log} 2>&1"

@@ -13,7 +13,7 @@ rule crosscheck:
     log:
         "results/crosscheck/logs/{scene}.log",
     benchmark:
-        "results/crosscheck/benchmarks/{scene}.tsv"
+        "results/crosscheck/timings/{scene}.tsv"
     shell:
         "graphdem crosscheck --scene {wildcards.scene} {params.sims:q} --chaos {input.chaos:q} "
         "--tolerance {params.tolerance:q} {params.body:q} --out {output:q} > {log} 2>&1"
@@ -27,7 +27,7 @@ rule crosscheck_all:
     log:
         "results/crosscheck/logs/all.log",
     benchmark:
-        "results/crosscheck/benchmarks/all.tsv"
+        "results/crosscheck/timings/all.tsv"
     shell:
         "graphdem crosscheck --combine {input:q} --out {output:q} > {log} 2>&1"
 
@@ -46,7 +46,7 @@ rule transfer_evaluate:
     log:
         "results/crosscheck/{scene}/logs/transfer_{engine}.log",
     benchmark:
-        "results/crosscheck/{scene}/benchmarks/transfer_{engine}.tsv"
+        "results/crosscheck/{scene}/timings/transfer_{engine}.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --data {input.sims:q} --split test --history {params.history:q} "
         "--runtime-json {params.runtime:q} {params.metrics:q} --out {output:q} --no-progress > {log} 2>&1"
@@ -64,7 +64,7 @@ rule transfer:
     log:
         "results/crosscheck/logs/{scene}_transfer.log",
     benchmark:
-        "results/crosscheck/benchmarks/{scene}_transfer.tsv"
+        "results/crosscheck/timings/{scene}_transfer.tsv"
     shell:
         "graphdem transfer --same {input.same:q} --other {input.other:q} --trained-on {params.trained_on:q} "
         "--other-engine {params.other:q} --out {output:q} > {log} 2>&1"

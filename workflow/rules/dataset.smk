@@ -15,7 +15,7 @@ rule dataset:
     log:
         "results/{name}/logs/dataset.log",
     benchmark:
-        "results/{name}/benchmarks/dataset.tsv"
+        "results/{name}/timings/dataset.tsv"
     shell:
         "graphdem dataset --scene {wildcards.name} --table {input.table:q} --sims results/{wildcards.name}/sims "
         "--out-dir results/{wildcards.name}/dataset --connectivity-radius {params.radius:q} "

@@ -33,7 +33,7 @@ rule evaluate:
     log:
         "results/{name}/logs/evaluate.log",
     benchmark:
-        "results/{name}/benchmarks/evaluate.tsv"
+        "results/{name}/timings/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --table-html {output.table:q} "

@@ -15,7 +15,7 @@ rule export:
     log:
         "results/{scene}/logs/export.log",
     benchmark:
-        "results/{scene}/benchmarks/export.tsv"
+        "results/{scene}/timings/export.tsv"
     shell:
         "for sim in {params.ids:q}; do "
         "graphdem export \"results/{wildcards.scene}/sims/$sim.h5\" --out {output:q}\"/$sim/dem.pvd\" && "

@@ -12,7 +12,7 @@ rule import_solidgn:
     log:
         "results/{bench}/logs/import.log",
     benchmark:
-        "results/{bench}/benchmarks/import.tsv"
+        "results/{bench}/timings/import.tsv"
     shell:
         "graphdem import-solidgn {params.source:q} results/{wildcards.bench}/import {params.limits:q} "
         "--no-progress > {log} 2>&1"

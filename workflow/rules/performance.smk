@@ -16,7 +16,7 @@ rule performance_dem:
     log:
         "results/{scene}/logs/performance/dem_{contender}.log",
     benchmark:
-        "results/{scene}/benchmarks/performance/dem_{contender}.tsv"
+        "results/{scene}/timings/performance/dem_{contender}.tsv"
     shell:
         "graphdem performance-dem --scene {wildcards.scene} --name {wildcards.contender} --variant {params.variant:q} "
         "--sims {params.sims:q} --packings results/{wildcards.scene}/packings --truth {input.truth:q} "
@@ -42,7 +42,7 @@ rule performance_surrogate:
     log:
         "results/{scene}/logs/performance/surrogate_{contender}.log",
     benchmark:
-        "results/{scene}/benchmarks/performance/surrogate_{contender}.tsv"
+        "results/{scene}/timings/performance/surrogate_{contender}.tsv"
     shell:
         "graphdem performance-surrogate --name {wildcards.contender} --variant {params.variant:q} "
         "--checkpoint {input.checkpoint:q} --data {input.truth:q} --runtime-json {params.runtime:q} "
@@ -70,7 +70,7 @@ rule performance:
     log:
         "results/{scene}/logs/performance.log",
     benchmark:
-        "results/{scene}/benchmarks/performance.tsv"
+        "results/{scene}/timings/performance.tsv"
     shell:
         "graphdem performance-report --tables {input.tables:q} --packings {input.packings:q} --main {params.main:q} "
         "--reference {params.reference:q} --out {output.table:q} --plot {output.plot:q} --substeps-plot {output.substeps:q} "

@@ -11,7 +11,7 @@ rule physics:
     log:
         "results/{scene}/logs/physics.log",
     benchmark:
-        "results/{scene}/benchmarks/physics.tsv"
+        "results/{scene}/timings/physics.tsv"
     shell:
         "graphdem physics --scene {wildcards.scene} --data {input.sims:q} --out {output.table:q} --plot {output.plot:q} "
         "> {log} 2>&1"

@@ -12,7 +12,7 @@ rule prepare:
     log:
         "results/{scene}/logs/prepare/{key}.log",
     benchmark:
-        "results/{scene}/benchmarks/prepare/{key}.tsv"
+        "results/{scene}/timings/prepare/{key}.tsv"
     shell:
         "graphdem prepare --scene {wildcards.scene} --engine {params.engine:q} --params {params.packing:q} "
         "--out {output:q} --ranks {threads} > {log} 2>&1"

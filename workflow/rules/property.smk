@@ -17,7 +17,7 @@ rule property_rollout:
     log:
         "results/{scene}/logs/property/rollout_{value}_{sim}.log",
     benchmark:
-        "results/{scene}/benchmarks/property/rollout_{value}_{sim}.tsv"
+        "results/{scene}/timings/property/rollout_{value}_{sim}.tsv"
     shell:
         "graphdem rollout --checkpoint {input.checkpoint:q} --data {input.sim:q} "
         "--out-dir results/{wildcards.scene}/property/{wildcards.value}/rollouts --threads {threads} "
@@ -41,7 +41,7 @@ rule property_test:
     log:
         "results/{scene}/logs/property_test.log",
     benchmark:
-        "results/{scene}/benchmarks/property_test.tsv"
+        "results/{scene}/timings/property_test.tsv"
     shell:
         "graphdem property-test --checkpoint {input.checkpoint:q} {params.args:q} --out {output.table:q} "
         "--plot {output.plot:q} --title {wildcards.scene:q} > {log} 2>&1"

@@ -14,7 +14,7 @@ rule rollout:
     log:
         "results/{scene}/logs/rollout/{sim}.log",
     benchmark:
-        "results/{scene}/benchmarks/rollout/{sim}.tsv"
+        "results/{scene}/timings/rollout/{sim}.tsv"
     shell:
         "graphdem rollout --checkpoint {input.checkpoint:q} --data {input.sim:q} "
         "--out-dir results/{wildcards.scene}/rollouts --threads {threads} --runtime-json {params.runtime:q} "

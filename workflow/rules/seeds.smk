@@ -23,7 +23,7 @@ rule train_seed:
     log:
         "results/{name}/seeds/{seed}/logs/train.log",
     benchmark:
-        "results/{name}/seeds/{seed}/benchmarks/train.tsv"
+        "results/{name}/seeds/{seed}/timings/train.tsv"
     shell:
         "{params.command:q} train --stats {input.stats:q} --splits {input.splits:q} --model-json {params.model:q} "
         "--train-json {params.train:q} --out-dir results/{wildcards.name}/seeds/{wildcards.seed}/model "
@@ -49,7 +49,7 @@ rule evaluate_seed:
     log:
         "results/{name}/seeds/{seed}/logs/evaluate.log",
     benchmark:
-        "results/{name}/seeds/{seed}/benchmarks/evaluate.tsv"
+        "results/{name}/seeds/{seed}/timings/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
@@ -77,7 +77,7 @@ rule evaluate_seed_ensemble:
     log:
         "results/{name}/seed_ensemble/logs/evaluate.log",
     benchmark:
-        "results/{name}/seed_ensemble/benchmarks/evaluate.tsv"
+        "results/{name}/seed_ensemble/timings/evaluate.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoints:q} --splits {input.splits:q} {params.evaluation:q} "
         "--runtime-json {params.runtime:q} --out {output.metrics:q} --per-step {output.per_step:q} "
@@ -95,6 +95,6 @@ rule seeds:
     log:
         "results/{name}/logs/seeds.log",
     benchmark:
-        "results/{name}/benchmarks/seeds.tsv"
+        "results/{name}/timings/seeds.tsv"
     shell:
         "graphdem seeds --metrics {input:q} --seeds {params.seeds:q} --out {output:q} > {log} 2>&1"

@@ -12,7 +12,7 @@ rule simulate:
     log:
         "results/{run}/logs/simulate/{sim}.log",
     benchmark:
-        "results/{run}/benchmarks/simulate/{sim}.tsv"
+        "results/{run}/timings/simulate/{sim}.tsv"
     shell:
         "graphdem simulate --scene {params.scene:q} --sim {params.sim:q} "
         "--packing {input.packing:q} --out {output:q} --ranks {threads} > {log} 2>&1"

@@ -12,7 +12,7 @@ rule stability_dem:
     log:
         "results/{scene}/logs/stability_dem.log",
     benchmark:
-        "results/{scene}/benchmarks/stability_dem.tsv"
+        "results/{scene}/timings/stability_dem.tsv"
     shell:
         "graphdem stability-dem --scene {wildcards.scene} --sim {params.sim:q} --packing {input.packing:q} "
         "--factors {params.factors:q} --out {output:q} > {log} 2>&1"
@@ -38,7 +38,7 @@ rule stability_surrogate:
     log:
         "results/{scene}/logs/stability_surrogate.log",
     benchmark:
-        "results/{scene}/benchmarks/stability_surrogate.tsv"
+        "results/{scene}/timings/stability_surrogate.tsv"
     shell:
         "graphdem stability-surrogate --checkpoint {input.checkpoint:q} --data {input.sims:q} "
         "--runtime-json {params.runtime:q} {params.args:q} {params.device:q} "
@@ -57,6 +57,6 @@ rule stability:
     log:
         "results/{scene}/logs/stability.log",
     benchmark:
-        "results/{scene}/benchmarks/stability.tsv"
+        "results/{scene}/timings/stability.tsv"
     shell:
         "graphdem combine --union --tables {input.dem:q} {input.surrogate:q} --out {output:q} > {log} 2>&1"

@@ -18,7 +18,7 @@ rule stress_readout:
     log:
         "results/{name}/logs/stress_readout.log",
     benchmark:
-        "results/{name}/benchmarks/stress_readout.tsv"
+        "results/{name}/timings/stress_readout.tsv"
     shell:
         "graphdem stress-readout --splits {input.splits:q} --settings-json {params.settings:q} "
         "--out {output.readout:q} --history {output.history:q} --threads {threads} --no-progress > {log} 2>&1"
@@ -46,7 +46,7 @@ rule stress_test:
     log:
         "results/{name}/logs/stress_test.log",
     benchmark:
-        "results/{name}/benchmarks/stress_test.tsv"
+        "results/{name}/timings/stress_test.tsv"
     shell:
         "graphdem stress-test --readout {input.readout:q} --checkpoint {input.checkpoint:q} --sims {input.sims:q} "
         "{params.args:q} --out {output.table:q} --plot {output.plot:q} --title {wildcards.name:q} > {log} 2>&1"

@@ -9,6 +9,6 @@ rule sweep:
     log:
         "results/{scene}/logs/sweep.log",
     benchmark:
-        "results/{scene}/benchmarks/sweep.tsv"
+        "results/{scene}/timings/sweep.tsv"
     shell:
         "graphdem sweep --scene {wildcards.scene} --config-json {params.cfg:q} --out {output:q} > {log} 2>&1"

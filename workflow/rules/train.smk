@@ -24,7 +24,7 @@ rule train:
     log:
         "results/{name}/logs/train.log",
     benchmark:
-        "results/{name}/benchmarks/train.tsv"
+        "results/{name}/timings/train.tsv"
     shell:
         "{params.command:q} train --stats {input.stats:q} --splits {input.splits:q} --model-json {params.model:q} "
         "--train-json {params.train:q} --out-dir results/{wildcards.name}/model --threads {threads} "
