@@ -284,7 +284,7 @@ def as_accurate(dem: pd.Series, surrogate: pd.Series, metrics: list[str]) -> boo
 
 
 def report(contenders: pd.DataFrame, main: str, reference: str, settling_seconds: float | None) -> pd.DataFrame:
-    """benchmark.csv: every contender with its Pareto flag, the speed-up over the DEM reference, the
+    """performance.csv: every contender with its Pareto flag, the speed-up over the DEM reference, the
     break-even number of DEM sub-steps per frame and the speed-ups over the fastest DEM contender that is
     as accurate (surrogate rows), plus the settling row.
 

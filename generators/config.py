@@ -377,7 +377,7 @@ def resolve(config: dict) -> dict:
 
 def drop_null_contenders(section: Any) -> Any:
     """``section`` without the performance contenders set to null: ``--config
-    "slide={performance: {dem: {dt_5pct: null}}}"`` leaves that contender out of the benchmark (the
+    "slide={performance: {dem: {dt_5pct: null}}}"`` leaves that contender out of the performance stage (the
     configured ones are merged in, so null is the way to remove one)."""
     perf = section.get("performance") if isinstance(section, dict) else None
     if not isinstance(perf, dict):

@@ -1,6 +1,6 @@
 """The loss of rollout fine-tuning (``train.finetune``): a batch of training rollouts with the gradient through them.
 
-One-step training (:func:`surrogate.train.batch_loss`) fits the acceleration of the next frame; the benchmark
+One-step training (:func:`surrogate.train.batch_loss`) fits the acceleration of the next frame; the evaluation
 scores the position error of a whole rollout, which a model trained frame by frame never sees. Fine-tuning a
 trained model on that error itself, backpropagated through the autoregressive steps, is how weather models close
 the same gap (GraphCast, Lam et al., Science 2023: 1-step training, then autoregressive fine-tuning on rollouts of

@@ -11,7 +11,7 @@ one's measured effect):
   and the updater integrates, the predicted particles only;
 * ``skip_kinematic_pairs`` (exact for a model trained this way, as every model here is): no edge
   joins two kinematic particles. Off, such edges are built: more work, and a graph the model never
-  saw in training (the benchmark measures both). Pruning and sleeping rely on it;
+  saw in training (the performance stage times both). Pruning and sleeping rely on it;
 * ``precision``: ``float32`` (training's), ``float64``, or ``bfloat16`` (autocast of the network on
   the model's device type, CPU or CUDA; positions are integrated in float32);
 * ``sleep_speed`` (not exact; null turns it off): a moving particle whose every history velocity is

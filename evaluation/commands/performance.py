@@ -43,7 +43,7 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=run_surrogate)
 
-    p = sub.add_parser("performance-report", help="benchmark.csv and the Pareto plot from the contenders' rows")
+    p = sub.add_parser("performance-report", help="performance.csv and the Pareto plot from the contenders' rows")
     p.add_argument("--tables", type=Path, nargs="+", required=True, help="one CSV per contender")
     p.add_argument("--main", required=True, help="the surrogate contender of the headline figures")
     p.add_argument("--reference", required=True, help="the DEM reference contender")

@@ -226,7 +226,7 @@ A generated table lives between two marker lines in any markdown file (README.md
 NAME is <subject>-<kind>: the table of that kind from results/<subject>/ (e.g. slide-metrics):
   metrics   results/<scene>/metrics.csv: a row per metric (MSE, the article's Acc, and skill, change error and
             errors in ensemble spreads where the CSV has them; intervals as 0.58 [0.41, 0.77]), a column per method
-  speed     results/<scene>/benchmark.csv: a row per contender: ms per frame, rollout MSE, speed-up over the DEM
+  speed     results/<scene>/performance.csv: a row per contender: ms per frame, rollout MSE, speed-up over the DEM
   card      results/<benchmark>/card.csv: a row per quantity and K, mean ± std over the seeds, the article's beside
 
 The first line of a block is its stamp: the CSV, a hash of its bytes (data), the commit and config hash it

@@ -178,7 +178,7 @@ def summary(table: pd.DataFrame) -> str:
 
 
 def speed(table: pd.DataFrame) -> str:
-    """results/<scene>/benchmark.csv: a row per contender (the settling row left out): its kind, milliseconds per
+    """results/<scene>/performance.csv: a row per contender (the settling row left out): its kind, milliseconds per
     predicted frame, rollout MSE and speed-up over the DEM reference; the headline contender marked (main)."""
     rows = []
     for row in table[table["kind"] != "dem_settling"].to_dict("records"):
@@ -227,7 +227,7 @@ def _card_cell(row: dict) -> str:
 KINDS = {kind.name: kind for kind in (
     Kind("metrics", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, metrics),
     Kind("summary", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, summary),
-    Kind("speed", "{subject}/benchmark.csv", ("contender", "kind", "seconds_per_frame", "mse",
+    Kind("speed", "{subject}/performance.csv", ("contender", "kind", "seconds_per_frame", "mse",
                                               "speedup_vs_reference"), PERFORMANCE, speed),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,
          card),

@@ -84,8 +84,8 @@ PROMISES = {
     "--workflow-profile workflow/profiles/slurm results/slide/metrics.csv --config scale=paper":
         {"tested_by": "tests/workflow/test_slurm.py"},
     "results/slide/seeds.csv --config seeds=3": {"builds": ({"slide"}, "train_seed")},
-    "results/slide/benchmark.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
-    "results/shear/benchmark.csv": {"builds": ({"shear"}, "performance")},
+    "results/slide/performance.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
+    "results/shear/performance.csv": {"builds": ({"shear"}, "performance")},
     "results/shear/stability.csv": {"builds": ({"shear"}, "stability")},
     "results/shear/property.csv": {"builds": ({"shear"}, "property_test")},
     "results/shear/stress.csv": {"builds": ({"shear"}, "stress_test")},

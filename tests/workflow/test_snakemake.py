@@ -45,7 +45,7 @@ def planned(proc) -> dict[str, int]:
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     wd = tmp_path_factory.mktemp("wf")
-    proc = snakemake(wd, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-c2")
+    proc = snakemake(wd, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-c2")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return wd
 
@@ -109,7 +109,7 @@ def test_seeds_stage_trains_the_other_seeds_and_reports_the_spread(workdir):
 def test_performance_stage_outputs(workdir):
     import pandas as pd
     res = workdir / "results" / "slide"
-    table = pd.read_csv(res / "benchmark.csv").set_index("contender")
+    table = pd.read_csv(res / "performance.csv").set_index("contender")
     # the reference rerun of the DEM reproduces the data bit for bit (one thread, same inputs)
     assert table.at["reference", "mse"] == 0.0 and table.at["reference", "acc_Max Ht"] == 100.0
     ref = table.loc["reference"]
@@ -210,7 +210,7 @@ def test_unchanged_rerun_does_nothing(workdir):
 def test_changed_device_or_launcher_reruns_nothing(workdir):
     """Machine settings (docs/scaling.md): where and in how many processes it computes, not what."""
     machine = ("device=cpu", "launch={launcher: torchrun, processes: 2}")
-    assert planned(snakemake(workdir, TARGET, "results/slide/benchmark.csv", "results/slide/stability.csv", "-n",
+    assert planned(snakemake(workdir, TARGET, "results/slide/performance.csv", "results/slide/stability.csv", "-n",
                              config=(SMALL, *machine))) == {}
 
 
@@ -292,7 +292,7 @@ def test_every_registered_scene_plans_the_benchmark_and_stability_stages(tmp_pat
     """From the scene registry, not from a list: each scene's benchmark has one job per configured
     contender, and its stability stage both tests."""
     cfg = config.load({"scale": "ci"})[scene]
-    jobs = planned(snakemake(tmp_path, f"results/{scene}/benchmark.csv", f"results/{scene}/stability.csv", "-n",
+    jobs = planned(snakemake(tmp_path, f"results/{scene}/performance.csv", f"results/{scene}/stability.csv", "-n",
                              config=()))
     assert jobs["performance_dem"] == len(cfg["performance"]["dem"])
     assert jobs["performance_surrogate"] == len(cfg["performance"]["surrogate"])

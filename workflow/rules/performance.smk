@@ -1,4 +1,4 @@
-# Stage performance: run time against error (results/{scene}/benchmark.csv), for every registered scene. One job
+# Stage performance: run time against error (results/{scene}/performance.csv), for every registered scene. One job
 # per contender, each alone on the machine (performance.alone: threads = all cores, so no two timings overlap).
 rule performance_dem:
     input:
@@ -55,9 +55,9 @@ rule performance:
         tables=contender_tables,
         packings=timed_packings,
     output:
-        table=report("results/{scene}/benchmark.csv", caption="../report/performance.rst",
+        table=report("results/{scene}/performance.csv", caption="../report/performance.rst",
                      category=report_category, subcategory="performance",
-                     labels={"figure": "benchmark.csv (download)", "scene": "{scene}"}),
+                     labels={"figure": "performance.csv (download)", "scene": "{scene}"}),
         plot=report("results/{scene}/plots/pareto.png", caption="../report/performance.rst",
                     category=report_category, subcategory="performance",
                     labels={"figure": "run time against error (Pareto front)", "scene": "{scene}"}),

@@ -1,4 +1,4 @@
-"""The rollout benchmark's table: its ratios, its graph sizes and its contact-miss rates (not its times)."""
+"""The rollout timing script's table: its ratios, its graph sizes and its contact-miss rates (not its times)."""
 
 import json
 
