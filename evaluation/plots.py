@@ -210,7 +210,7 @@ def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:
     return Path(path)
 
 
-def property_test(pairs: list, table: pd.DataFrame, path: Path, title: str) -> Path:
+def property_sensitivity(pairs: list, table: pd.DataFrame, path: Path, title: str) -> Path:
     """Article Fig. 14 and its measure: the first sim's moving particles at the last frame (x against the
     vertical axis) with the low property value in red and the high one in grey on top, truth and Graph-DEM
     side by side, each run's mean x marked; then the Delta of mean x (high - low) per sim, DEM against

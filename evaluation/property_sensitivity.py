@@ -2,9 +2,9 @@
 one material property changes and nothing else does?
 
 For each test sim the DEM is rerun twice from the sim's own packing, with every sweep parameter kept and one
-property (``evaluate.property_test.property``, a node property f_i of the model) set to a low and a high value
-inside the swept range (``generators.property_test.values``). The surrogate rolls out both reruns from their
-own first K frames, as every rollout does. The article marks the mean x of the particle positions at a late
+property (``evaluate.property_sensitivity.property``, a node property f_i of the model) set to a low and a high
+value inside the swept range (``generators.property_sensitivity.values``). The surrogate rolls out both reruns
+from their own first K frames, as every rollout does. The article marks the mean x of the particle positions at a late
 frame of each run and compares the two; here, at the last recorded frame t_end:
 
     Delta = mean_i x_i(t_end; high) - mean_i x_i(t_end; low)       (moving particles i)
@@ -76,8 +76,8 @@ def read_pair(runs: tuple[Path, Path], sim: str, name: str, sha: str, history: i
         values.append(property_value(truth, name, path))
     if not np.array_equal(truths[0].kinematic, truths[1].kinematic) or truths[0].position.shape != \
             truths[1].position.shape:
-        raise ValueError(f"{sim}: the two reruns ({runs[0]}, {runs[1]}) hold different particles; the property test "
-                         f"needs the same packing in both")
+        raise ValueError(f"{sim}: the two reruns ({runs[0]}, {runs[1]}) hold different particles; the "
+                         f"property-sensitivity test needs the same packing in both")
     if not values[0] < values[1]:
         raise ValueError(f"{sim}: {name} is {values[0]:g} in {runs[0]} and {values[1]:g} in {runs[1]}; give the "
                          f"low value's run first")
@@ -135,7 +135,7 @@ def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: 
     """The table (one row per sim, then 'all') and the pairs; ``chaos`` is (the sims' folder, the DEM
     ensemble's folder) or None."""
     if not sims:
-        raise ValueError("the property test needs at least one test sim")
+        raise ValueError("the property-sensitivity test needs at least one test sim")
     rows, pairs = [], []
     for sim in sims:
         pair = read_pair(runs, sim, name, sha, history)

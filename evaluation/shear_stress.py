@@ -154,7 +154,7 @@ def standardisation(sets: list[PairSet]) -> tuple[torch.Tensor, torch.Tensor]:
     """Mean and std of every feature over the pairs of ``sets`` (std 1 where a feature is constant)."""
     x = np.concatenate([s.features for s in sets])
     if not len(x):
-        raise ValueError("no soil-wall pair within the cutoff in any training frame: raise stress_readout.cutoff")
+        raise ValueError("no soil-wall pair within the cutoff in any training frame: raise shear_stress_readout.cutoff")
     std = x.std(axis=0)
     return torch.tensor(x.mean(axis=0)), torch.tensor(np.where(std > 0, std, 1.0))
 
@@ -195,7 +195,7 @@ def _targets(samples: list[Sample]) -> torch.Tensor:
 def fit(train: list[Sample], valid: list[Sample], cfg: dict, progress: bool = True,
         threads: int = 1) -> tuple[StressReadout, dict, pd.DataFrame]:
     """Train the readout on the ``train`` sims' frames (full batch, Adam, on ``threads`` CPU threads), keep the epoch
-    with the lowest valid MSE of tau / sigma_n. ``cfg``: the scene's ``stress_readout`` (cutoff, hidden, layers,
+    with the lowest valid MSE of tau / sigma_n. ``cfg``: the scene's ``shear_stress_readout`` (cutoff, hidden, layers,
     epochs, lr, seed). Returns the model, its metadata (for :func:`save`) and the history (epoch, train and valid
     MSE)."""
     torch.set_num_threads(int(threads))

@@ -67,7 +67,7 @@ def curves(model: shear_stress.StressReadout, meta: dict, traj: h5md.Trajectory,
     """The DEM's curve and the comparators' of one test sim (module docstring); ``meta`` is the readout's."""
     if "train_stress_ratio" not in meta:
         raise ValueError("the stress readout predates the Coulomb floor (no train_stress_ratio in its metadata): "
-                         "refit it, e.g. snakemake -c2 results/<scene>/stress.csv -R stress_readout")
+                         "refit it, e.g. snakemake -c2 results/<scene>/shear_stress.csv -R shear_stress_readout")
     truth = shear_stress.Sample.from_trajectory(traj)
     if not np.isfinite(truth.shear_stress).all():
         raise ValueError(f"sim {truth.id}: no shear_stress observable; rerun its DEM (the shear scene writes it)")

@@ -24,7 +24,7 @@ from typing import Any
 import jsonschema
 import yaml
 
-from generators import engines, property_test, scenes
+from generators import engines, property_sensitivity, scenes
 from generators.errors import ConfigError
 
 DEFAULTS = resources.files("generators").joinpath("defaults")
@@ -232,9 +232,30 @@ def _check_finite(node: Any, where: str = "") -> None:
         raise ConfigError(f"config key {where!r} = {node!r} is not allowed: every number must be finite")
 
 
+#: config keys of a scene's section that were renamed, as (the path below the section, old name, new name): a config
+#: that still sets the old name is refused with the new one, not as an unknown key
+RENAMED_KEYS = (
+    ((), "stress_readout", "shear_stress_readout"),
+    (("evaluate",), "property_test", "property_sensitivity"),
+)
+
+
+def _check_renamed(config: dict) -> None:
+    """Refuse a renamed key of a scene's section (:data:`RENAMED_KEYS`), naming the key it was renamed to."""
+    for name in scenes.names():
+        for path, old, new in RENAMED_KEYS:
+            node = config.get(name)
+            for part in path:
+                node = node.get(part) if isinstance(node, dict) else None
+            if isinstance(node, dict) and old in node:
+                where = ".".join((name, *path))
+                raise ConfigError(f"config key '{where}.{old}' was renamed '{where}.{new}'")
+
+
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
     _check_finite(config)
+    _check_renamed(config)
     _raise_errors(schema(), config)
     _check_semantics(config)
     return config
@@ -278,7 +299,7 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.engine' = {cfg['engine']!r}: the {name} scene runs in "
                               f"{', '.join(scene.engines)} for now")
         scene.check(cfg)
-        property_test.values(name, cfg)
+        property_sensitivity.values(name, cfg)
         _check_edge_features(name, cfg["model"])
     for name in BENCHMARKS:
         bench = config[name]

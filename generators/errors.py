@@ -1,5 +1,5 @@
 """The generators' configuration error, in a module of its own: the config loader, the scenes and the
-property test raise it, and none of them needs to import another to do so."""
+property-sensitivity test raise it, and none of them needs to import another to do so."""
 
 from __future__ import annotations
 

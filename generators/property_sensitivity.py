@@ -1,7 +1,7 @@
 """The property values of a scene's property-sensitivity test (article Fig. 14; the test itself is
 evaluation/property_sensitivity.py): which value of one swept node property each of the two DEM reruns takes.
 
-``evaluate.property_test: {property: P, at: [a, b]}`` sets P to the points a < b of its swept range
+``evaluate.property_sensitivity: {property: P, at: [a, b]}`` sets P to the points a < b of its swept range
 ``sweep.P = [lo, hi]``, log-interpolated as the sweep spaces a modulus or a stress:
 
     value(a) = lo * (hi / lo) ** a,     0 <= a <= 1
@@ -19,11 +19,11 @@ from generators.errors import ConfigError
 def values(section: str, cfg: dict) -> list[float]:
     """The two rerun values (low, high) of config section ``section`` (a scene's); ConfigError naming the key
     where the test is set but its property is not a swept node property of the model."""
-    test = cfg["evaluate"].get("property_test")
+    test = cfg["evaluate"].get("property_sensitivity")
     if test is None:
         return []
     name, (a, b) = test["property"], test["at"]
-    key = f"'{section}.evaluate.property_test'"
+    key = f"'{section}.evaluate.property_sensitivity'"
     if name not in (cfg["model"].get("properties") or []):
         raise ConfigError(f"config key {key}: property {name!r} is not a node property of the model "
                           f"('{section}.model.properties' = {cfg['model'].get('properties') or []})")
@@ -35,6 +35,6 @@ def values(section: str, cfg: dict) -> list[float]:
         raise ConfigError(f"config key {key}: at = {[a, b]} must be two points a < b of the swept range (0..1)")
     lo, hi = float(swept[0]), float(swept[1])
     if not 0.0 < lo < hi:
-        raise ConfigError(f"config key '{section}.sweep.{name}' = {swept}: the property test log-interpolates in it, "
-                          f"so it needs 0 < min < max")
+        raise ConfigError(f"config key '{section}.sweep.{name}' = {swept}: the property-sensitivity test "
+                          f"log-interpolates in it, so it needs 0 < min < max")
     return [float(f"{lo * (hi / lo) ** float(t):.6g}") for t in (a, b)]

@@ -39,7 +39,7 @@ from generators.packing import packing_key
 EXECUTION_KEYS = ("ranks",)
 # Surrogate settings (the Graph-DEM model, its training and scoring, and a scene's stress readout): a
 # change to them retrains or rescores, it never reruns the sweep or an engine.
-SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability", "stress_readout")
+SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stability", "shear_stress_readout")
 # Keys of a scene section that never enter a sweep row: sweep and sizes, surrogate settings, how an engine
 # runs, and the settling of the packing (which only the packing key carries).
 NOT_IN_ROWS = frozenset({"seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time",

@@ -4,7 +4,7 @@ Each stage registers its own subcommands (``register(sub)``, next to the code th
 in generators/cli.py (config, sweep, prepare, simulate, convert, stability-dem, restitution, physics,
 crosscheck, transfer, import-solidgn, export, inspect), the surrogate's in surrogate/commands/ (dataset,
 contacts, train, rollout), the evaluation's in evaluation/commands/ (evaluate, combine, seeds, card,
-property-test, stress-readout, stress-test, stability-surrogate, the performance stage's) and
+property-sensitivity, shear-stress-readout, shear-stress-check, stability-surrogate, the performance stage's) and
 evaluation/doc_tables/ (tables: the docs' results tables).
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the file, sim,
 frame or config key) when something is wrong.
@@ -38,8 +38,8 @@ REGISTRARS = (
     evaluate.register,                  # evaluate, combine
     seeds.register,                     # seeds
     card.register,                      # card
-    property_sensitivity.register,      # property-test
-    shear_stress.register,              # stress-readout, stress-test
+    property_sensitivity.register,      # property-sensitivity
+    shear_stress.register,              # shear-stress-readout, shear-stress-check
     stability.register,                 # stability-surrogate
     performance.register,               # performance-dem, performance-surrogate, performance-report
     doc_tables.add_command,             # tables

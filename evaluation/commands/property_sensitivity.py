@@ -1,4 +1,4 @@
-"""`graphdem property-test`: the property-sensitivity test (article Fig. 14) of a checkpoint
+"""`graphdem property-sensitivity`: the property-sensitivity test (article Fig. 14) of a checkpoint
 (evaluation/property_sensitivity.py)."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("property-test", help="the property-sensitivity test (article Fig. 14) of a checkpoint",
+    p = sub.add_parser("property-sensitivity", help="the property-sensitivity test (article Fig. 14) of a checkpoint",
                        description="For each test sim, two DEM reruns that differ only in one node property (low, "
                                    "high) and the checkpoint's rollouts of both: the change of the moving particles' "
                                    "mean x at the last frame, DEM against Graph-DEM, same sign and ratio, beside the "
-                                   "DEM's own chaos (docs/surrogate.md, Property test).")
+                                   "DEM's own chaos (docs/surrogate.md, Property sensitivity).")
     p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
     p.add_argument("--runs", type=Path, nargs=2, required=True, metavar=("LOW", "HIGH"),
                    help="the low and the high value's run folders, each with sims/<id>.h5 and rollouts/<id>.h5")
@@ -35,12 +35,12 @@ def run(args) -> None:
     from evaluation import plots, property_sensitivity
     from surrogate import provenance
     if (args.ensemble is None) != (args.sims_dir is None):
-        raise SystemExit("graphdem property-test: give --sims-dir and --ensemble together (the sims and their DEM "
-                         "ensemble reruns), or neither")
+        raise SystemExit("graphdem property-sensitivity: give --sims-dir and --ensemble together (the sims and their "
+                         "DEM ensemble reruns), or neither")
     chaos = (args.sims_dir, args.ensemble) if args.ensemble is not None else None
     table, pairs = property_sensitivity.run(tuple(args.runs), args.sims, args.property,
                                             provenance.digest(args.checkpoint), args.history, args.tolerance, chaos)
     if args.plot:
-        plots.property_test(pairs, table, args.plot, args.title or f"property test: {args.property}")
+        plots.property_sensitivity(pairs, table, args.plot, args.title or f"property sensitivity: {args.property}")
     options.write_table(table, args.out)
     print(table.to_string(index=False))

@@ -1,5 +1,5 @@
-"""`graphdem stress-readout` (train the shear-stress readout on a shear dataset's DEM frames,
-evaluation/shear_stress.py) and `graphdem stress-test` (the predicted against the DEM's peak shear stress,
+"""`graphdem shear-stress-readout` (train the shear-stress readout on a shear dataset's DEM frames,
+evaluation/shear_stress.py) and `graphdem shear-stress-check` (the predicted against the DEM's peak shear stress,
 evaluation/shear_stress_check.py)."""
 
 from __future__ import annotations
@@ -10,24 +10,24 @@ from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("stress-readout", help="train the shear-stress readout on a shear dataset's DEM frames",
+    p = sub.add_parser("shear-stress-readout", help="train the shear-stress readout on a shear dataset's DEM frames",
                        description="Fit the pair-force readout of the shear stress (evaluation/shear_stress.py; "
                                    "docs/shear-scene.md) to the train split's shear_stress observable, keeping the "
                                    "epoch with the lowest valid error of tau / sigma_n.")
     p.add_argument("--splits", type=Path, required=True, help="the dataset's splits.csv (train and valid sims)")
     p.add_argument("--settings-json", type=options.json_arg, required=True,
-                   help="the scene's stress_readout settings: cutoff, hidden, layers, epochs, lr, seed")
+                   help="the scene's shear_stress_readout settings: cutoff, hidden, layers, epochs, lr, seed")
     p.add_argument("--out", type=Path, required=True, help="the readout to write (.pt: tensors and JSON)")
     p.add_argument("--history", type=Path, required=True, help="CSV: train and valid MSE per epoch")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_readout)
 
-    p = sub.add_parser("stress-test", help="the predicted against the DEM's peak shear stress of the test sims",
+    p = sub.add_parser("shear-stress-check", help="the predicted against the DEM's peak shear stress of the test sims",
                        description="Read the shear stress from the DEM's frames, Graph-DEM's rollouts and constant "
                                    "velocity with the readout, beside the DEM's observable and its ensemble rerun's; "
                                    "peak and curve errors per sim (evaluation/shear_stress_check.py).")
-    p.add_argument("--readout", type=Path, required=True, help="the readout (graphdem stress-readout)")
+    p.add_argument("--readout", type=Path, required=True, help="the readout (graphdem shear-stress-readout)")
     p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
     p.add_argument("--sims", type=Path, nargs="+", required=True, help="the test sims' H5MD files")
     p.add_argument("--rollouts", type=Path, required=True, help="the folder of the rollouts, <id>.h5")

@@ -144,8 +144,8 @@ def test_the_cli_writes_the_table_and_the_figure(tmp_path, capsys):
     low, high = tmp_path / "property" / "0", tmp_path / "property" / "1"
     write_run(low, "s_0", 1e7, 0.0, 0.0, sha)
     write_run(high, "s_0", 8e7, 2e-6, 1.9e-6, sha)
-    out, plot = tmp_path / "property.csv", tmp_path / "property.png"
-    assert main(["property-test", "--checkpoint", str(model), "--runs", str(low), str(high), "--sims", "s_0",
+    out, plot = tmp_path / "property_sensitivity.csv", tmp_path / "property_sensitivity.png"
+    assert main(["property-sensitivity", "--checkpoint", str(model), "--runs", str(low), str(high), "--sims", "s_0",
                  "--property", "young", "--history", str(K), "--out", str(out), "--plot", str(plot)]) == 0
     table = pd.read_csv(out)
     assert list(table["sim"]) == ["s_0", "all"] and (table["checkpoint_sha"] == sha).all()
@@ -153,5 +153,5 @@ def test_the_cli_writes_the_table_and_the_figure(tmp_path, capsys):
     assert plot.stat().st_size > 10_000
     assert "s_0" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="--sims-dir and --ensemble together"):
-        main(["property-test", "--checkpoint", str(model), "--runs", str(low), str(high), "--sims", "s_0",
+        main(["property-sensitivity", "--checkpoint", str(model), "--runs", str(low), str(high), "--sims", "s_0",
               "--property", "young", "--history", str(K), "--out", str(out), "--ensemble", str(tmp_path)])

@@ -56,6 +56,7 @@ def test_the_coulomb_floor_peaks_at_sigma_n_times_the_train_sims_mean_peak_ratio
 
 
 def test_a_readout_without_the_train_ratios_is_refused_with_the_command_that_refits_it():
-    with pytest.raises(ValueError, match="refit it, e.g. snakemake -c2 results/<scene>/stress.csv -R stress_readout"):
+    refit = "refit it, e.g. snakemake -c2 results/<scene>/shear_stress.csv -R shear_stress_readout"
+    with pytest.raises(ValueError, match=refit):
         shear_stress_check.curves(None, {"cutoff": 0.0}, None, np.zeros((3, 2, 3)), 2, None)
 

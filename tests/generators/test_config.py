@@ -24,6 +24,28 @@ def test_unknown_key_names_key_and_allowed_keys():
     assert "allowed keys under slide" in msg and "young" in msg
 
 
+@pytest.mark.parametrize("override, old, new", [
+    ({"shear": {"stress_readout": {"epochs": 3}}}, "shear.stress_readout", "shear.shear_stress_readout"),
+    ({"shear": {"evaluate": {"property_test": None}}}, "shear.evaluate.property_test",
+     "shear.evaluate.property_sensitivity"),
+    ({"slide": {"evaluate": {"property_test": None}}}, "slide.evaluate.property_test",
+     "slide.evaluate.property_sensitivity"),
+])
+def test_a_renamed_key_is_refused_naming_its_new_name(override, old, new):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert str(err.value) == f"config key '{old}' was renamed '{new}'"
+
+
+def test_a_renamed_key_in_a_configfile_is_refused_naming_its_new_name(tmp_path):
+    full = config.defaults()
+    full["shear"]["stress_readout"] = full["shear"].pop("shear_stress_readout")
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(full))
+    with pytest.raises(config.ConfigError, match="'shear.stress_readout' was renamed 'shear.shear_stress_readout'"):
+        config.load(path=path)
+
+
 def test_unknown_top_level_key():
     with pytest.raises(config.ConfigError, match="'slidee'.*allowed keys: .*slide"):
         config.load({"slidee": {}})

@@ -19,7 +19,7 @@ SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
 
 def _run_ci_scenes(wd: Path) -> dict:
     targets = [f"results/{scene}/metrics.csv" for scene in ("meteorite", "shear", "slide")]
-    targets += ["results/shear/property.csv", "results/shear/stress.csv", "results/crosscheck.csv",
+    targets += ["results/shear/property_sensitivity.csv", "results/shear/shear_stress.csv", "results/crosscheck.csv",
                 *(f"results/crosscheck/{scene}_transfer.csv" for scene in ("slide", "shear"))]
     snakefile = str(ROOT / "workflow" / "Snakefile")
     proc = subprocess.run([SNAKEMAKE, "-c2", "-s", snakefile, "-d", str(wd), "--config", "scale=ci",

@@ -87,8 +87,8 @@ PROMISES = {
     "results/slide/performance.csv results/slide/stability.csv": {"builds": ({"slide"}, "performance")},
     "results/shear/performance.csv": {"builds": ({"shear"}, "performance")},
     "results/shear/stability.csv": {"builds": ({"shear"}, "stability")},
-    "results/shear/property.csv": {"builds": ({"shear"}, "property_test")},
-    "results/shear/stress.csv": {"builds": ({"shear"}, "stress_test")},
+    "results/shear/property_sensitivity.csv": {"builds": ({"shear"}, "property_sensitivity")},
+    "results/shear/shear_stress.csv": {"builds": ({"shear"}, "shear_stress_check")},
     "results/crosscheck.csv": {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},
     "results/crosscheck.csv --config scale=ci":
         {"builds": ({"slide", "meteorite", "shear", "collapse", "crosscheck"}, "crosscheck_all")},

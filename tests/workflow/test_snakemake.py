@@ -487,9 +487,9 @@ def test_shear_property_and_log_scaling_reach_the_dataset(ci_results):
     assert meteorite["property_names"] == [] and meteorite["kinematic_species"] == []
 
 
-def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable(ci_results):
-    """stress.csv: the readout trained on the train split (chosen on valid) reads each test sim's stress; the DEM's
-    and the ensemble's peaks are their observables' largest values over the predicted frames, the Coulomb floor's
+def test_shear_stress_check_reads_the_test_sims_stress_beside_the_dems_observable(ci_results):
+    """shear_stress.csv: the readout trained on the train split (chosen on valid) reads each test sim's stress; the
+    DEM's and the ensemble's peaks are their observables' largest values over the predicted frames, the Coulomb floor's
     the test sim's normal stress times the train sims' mean peak stress ratio."""
     import pandas as pd
 
@@ -497,7 +497,7 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
     res = ci_results / "shear"
     splits = pd.read_csv(res / "dataset" / "splits.csv")
     ids = list(splits.query("split == 'test'")["id"])
-    table = pd.read_csv(res / "stress.csv")
+    table = pd.read_csv(res / "shear_stress.csv")
     assert list(table["sim"]) == [*ids, "all"]
     k = int(table["history"].iloc[0])
     assert k == config.load({"scale": "ci"})["shear"]["model"]["history"]
@@ -517,27 +517,28 @@ def test_shear_stress_test_reads_the_test_sims_stress_beside_the_dems_observable
         for name in ("readout", "graphdem", "cv", "coulomb"):
             assert np.isfinite(row[f"{name}_peak"]) and np.isfinite(row[f"{name}_rmse"])
             assert row[f"{name}_error"] == pytest.approx(row[f"{name}_peak"] / row["dem_peak"] - 1)
-    _, meta = shear_stress.load(res / "stress" / "readout.pt")
+    _, meta = shear_stress.load(res / "shear_stress" / "readout.pt")
     assert meta["train_sims"] == list(splits.query("split == 'train'")["id"])
     assert meta["valid_sims"] == list(splits.query("split == 'valid'")["id"])
-    history = pd.read_csv(res / "stress" / "history.csv")
-    assert len(history) == config.load({"scale": "ci"})["shear"]["stress_readout"]["epochs"]
+    history = pd.read_csv(res / "shear_stress" / "history.csv")
+    assert len(history) == config.load({"scale": "ci"})["shear"]["shear_stress_readout"]["epochs"]
     assert meta["valid_mse"] == pytest.approx(history["valid_mse"].min())
-    assert (res / "plots" / "stress.png").stat().st_size > 10_000
-    for stage in ("stress_readout", "stress_test"):
+    assert (res / "plots" / "shear_stress.png").stat().st_size > 10_000
+    for stage in ("shear_stress_readout", "shear_stress_check"):
         assert (res / "logs" / f"{stage}.log").is_file() and (res / "timings" / f"{stage}.tsv").is_file()
 
 
-def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci_results):
+def test_shear_property_sensitivity_reruns_each_test_sim_at_two_moduli_all_else_kept(ci_results):
     """Article Fig. 14: the DEM reruns differ from the test sim in the modulus alone, the stiffer soil is
-    compressed less by the same platen load, and property.csv compares the DEM's change with the model's."""
+    compressed less by the same platen load, and property_sensitivity.csv compares the DEM's change with the
+    model's."""
     import pandas as pd
 
-    from generators import property_test
+    from generators import property_sensitivity
     res = ci_results / "shear"
-    low, high = property_test.values("shear", config.load({"scale": "ci"})["shear"])
+    low, high = property_sensitivity.values("shear", config.load({"scale": "ci"})["shear"])
     ids = list(pd.read_csv(res / "dataset" / "splits.csv").query("split == 'test'")["id"])
-    table = pd.read_csv(res / "property.csv")
+    table = pd.read_csv(res / "property_sensitivity.csv")
     assert list(table["sim"]) == [*ids, "all"] and set(table["property"]) == {"young"}
     for sim in ids:
         base = h5md.read(res / "sims" / f"{sim}.h5")
@@ -554,5 +555,6 @@ def test_shear_property_test_reruns_each_test_sim_at_two_moduli_all_else_kept(ci
         dem = [run.position[-1, ~run.kinematic, 0].astype(np.float64).mean() for run in runs]
         assert row["dem_delta"] == pytest.approx(dem[1] - dem[0], rel=1e-6, abs=1e-12)
         assert np.isfinite(row["graphdem_delta"]) and row["chaos_delta"] >= 0
-    assert (res / "plots" / "property.png").stat().st_size > 10_000
-    assert (res / "logs" / "property_test.log").is_file() and (res / "timings" / "property_test.tsv").is_file()
+    assert (res / "plots" / "property_sensitivity.png").stat().st_size > 10_000
+    assert (res / "logs" / "property_sensitivity.log").is_file()
+    assert (res / "timings" / "property_sensitivity.tsv").is_file()

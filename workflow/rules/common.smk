@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from generators import config as gconfig
-from generators import property_test as gproperty
+from generators import property_sensitivity as gproperty
 from generators import engines as gengines
 from generators import ensemble as gensemble
 from generators import scenes as gscenes
@@ -57,13 +57,15 @@ def ensemble_members(scene: str) -> int:
 # run replayed by its configured engine to its last history frame K - 1, every moving particle displaced there by
 # evaluate.ensemble_perturbation radii, and run on (generators/ensemble.py); scored beside Graph-DEM (the chaos floor).
 ENSEMBLE_RUNS = [f"{s}/ensemble/m{j}" for s in SCENES for j in range(ensemble_members(s))]
-# The property test's reruns (results/<scene>/property/<i>/, article Fig. 14): the scene's test sims rerun by its
-# configured engine with one node property at its i-th value (evaluate.property_test; generators/property_test.py).
+# The property-sensitivity test's reruns (results/<scene>/property/<i>/, article Fig. 14): the scene's test sims
+# rerun by its configured engine with one node property at its i-th value (evaluate.property_sensitivity;
+# generators/property_sensitivity.py).
 PROPERTY_VALUES = {s: gproperty.values(s, CFG[s]) for s in SCENES}
 PROPERTY_RUNS = [f"{s}/property/{i}" for s in SCENES for i in range(len(PROPERTY_VALUES[s]))]
 SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
-# Scenes whose section has a stress_readout (a stress read from predicted frames; workflow/rules/stress.smk).
-STRESS_SCENES = [s for s in SCENES if "stress_readout" in CFG[s]]
+# Scenes whose section has a shear_stress_readout (the shear stress read from predicted frames;
+# workflow/rules/shear_stress.smk).
+SHEAR_STRESS_SCENES = [s for s in SCENES if "shear_stress_readout" in CFG[s]]
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
 # The results folders this run involves (filled while the DAG is built); each records the run's scale.
@@ -188,8 +190,8 @@ def ensemble_row(scene: str, run: str) -> dict:
 
 def sim_row_json(wildcards) -> str:
     """A run's sim: the scene's sweep row in the run's engine (perturbed in a chaos run, replayed and perturbed
-    at the last history frame in a DEM ensemble member's run, one property at the run's value in a property-test
-    run)."""
+    at the last history frame in a DEM ensemble member's run, one property at the run's value in a
+    property-sensitivity run)."""
     scene = run_scene(wildcards)
     row = {**_physics(scene, wildcards.sim), "engine": run_engine(wildcards)}
     if wildcards.run.endswith("/chaos"):
@@ -197,7 +199,8 @@ def sim_row_json(wildcards) -> str:
     elif wildcards.run in ENSEMBLE_RUNS:
         row.update(ensemble_row(scene, wildcards.run))
     elif wildcards.run in PROPERTY_RUNS:
-        row[CFG[scene]["evaluate"]["property_test"]["property"]] = PROPERTY_VALUES[scene][int(wildcards.run.split("/")[2])]
+        prop = CFG[scene]["evaluate"]["property_sensitivity"]["property"]
+        row[prop] = PROPERTY_VALUES[scene][int(wildcards.run.split("/")[2])]
     return _json(row)
 
 
@@ -424,23 +427,23 @@ def ensemble_sims(wildcards) -> list[str]:
 
 
 def first_member_sims(wildcards) -> list[str]:
-    """Member 0 of the DEM ensemble of a scene's test sims: the one rerun the property and stress tests set
-    beside the sims (none without an ensemble)."""
+    """Member 0 of the DEM ensemble of a scene's test sims: the one rerun the property-sensitivity test and the
+    shear-stress check set beside the sims (none without an ensemble)."""
     return [f"{folder}/{i}.h5" for folder in ensemble_dirs(wildcards.name)[:1] for i in test_ids(wildcards.name)]
 
 
 def _property_runs(scene: str) -> list[str]:
-    """The property test's run folders of ``scene``, low value first."""
+    """The property-sensitivity test's run folders of ``scene``, low value first."""
     return [f"results/{scene}/property/{i}" for i in range(len(PROPERTY_VALUES[scene]))]
 
 
-def property_test_inputs(wildcards) -> dict[str, list[str]]:
-    """The property test's reruns and their rollouts (low value first), and the sims and DEM ensemble whose
-    difference is the chaos its signal stands beside (none without an ensemble)."""
+def property_sensitivity_inputs(wildcards) -> dict[str, list[str]]:
+    """The property-sensitivity test's reruns and their rollouts (low value first), and the sims and DEM ensemble
+    whose difference is the chaos its signal stands beside (none without an ensemble)."""
     scene, ids = wildcards.scene, test_ids(wildcards.scene)
     if not PROPERTY_VALUES[scene]:
-        raise ValueError(f"the {scene} scene has no property test: set '{scene}.evaluate.property_test' "
-                         f"(docs/surrogate.md, Property test)")
+        raise ValueError(f"the {scene} scene has no property-sensitivity test: set "
+                         f"'{scene}.evaluate.property_sensitivity' (docs/surrogate.md, Property sensitivity)")
     runs = _property_runs(scene)
     inputs = {"sims": [f"{run}/sims/{i}.h5" for run in runs for i in ids],
               "rollouts": [f"{run}/rollouts/{i}.h5" for run in runs for i in ids]}
@@ -455,23 +458,23 @@ def test_sims(wildcards) -> list[str]:
     return [f"results/{wildcards.name}/sims/{i}.h5" for i in test_ids(wildcards.name)]
 
 
-def stress_readout_json(wildcards) -> str:
-    """The scene's stress_readout settings (the readout's training), as JSON."""
-    return json.dumps(CFG[wildcards.name]["stress_readout"])
+def shear_stress_readout_json(wildcards) -> str:
+    """The scene's shear_stress_readout settings (the readout's training), as JSON."""
+    return json.dumps(CFG[wildcards.name]["shear_stress_readout"])
 
 
-def stress_test_args(wildcards) -> list[str]:
-    """The rollouts, K, tolerance and (where the scene has one) DEM ensemble of the stress test."""
+def shear_stress_check_args(wildcards) -> list[str]:
+    """The rollouts, K, tolerance and (where the scene has one) DEM ensemble of the shear-stress check."""
     scene = wildcards.name
     chaos = ["--ensemble", *ensemble_dirs(scene)[:1]] if ensemble_members(scene) else []
     return ["--rollouts", f"results/{scene}/rollouts", "--history", str(history_length(wildcards)),
-            "--tolerance", str(CFG[scene]["stress_readout"]["tolerance"]), *chaos]
+            "--tolerance", str(CFG[scene]["shear_stress_readout"]["tolerance"]), *chaos]
 
 
-def property_test_args(wildcards) -> list[str]:
-    """The runs, sims, property, K and tolerance of the property test (and the chaos' folders)."""
+def property_sensitivity_args(wildcards) -> list[str]:
+    """The runs, sims, property, K and tolerance of the property-sensitivity test (and the chaos' folders)."""
     scene = wildcards.scene
-    test = CFG[scene]["evaluate"]["property_test"]
+    test = CFG[scene]["evaluate"]["property_sensitivity"]
     chaos = []
     if ensemble_members(scene):
         chaos = ["--sims-dir", f"results/{scene}/sims", "--ensemble", ensemble_dirs(scene)[0]]

@@ -1,7 +1,8 @@
-# Stage property: the property-sensitivity test (article Fig. 14; docs/surrogate.md, Property test). Each test
-# sim is rerun by the DEM at the low and the high value of one node property (evaluate.property_test), all else
-# kept; the model rolls out both reruns; property.csv compares the change of the soil's mean x at the last frame,
-# DEM against Graph-DEM, beside the DEM's own chaos.
+# Stage property sensitivity: the property-sensitivity test (article Fig. 14; docs/surrogate.md, Property
+# sensitivity). Each test sim is rerun by the DEM at the low and the high value of one node property
+# (evaluate.property_sensitivity), all else kept, in results/{scene}/property/<i>/; the model rolls out both reruns;
+# property_sensitivity.csv compares the change of the soil's mean x at the last frame, DEM against Graph-DEM, beside
+# the DEM's own chaos.
 rule property_rollout:
     input:
         checkpoint="results/{scene}/model/best.pt",
@@ -24,24 +25,24 @@ rule property_rollout:
         "--runtime-json {params.runtime:q} {params.device:q} > {log} 2>&1"
 
 
-rule property_test:
+rule property_sensitivity:
     input:
-        unpack(property_test_inputs),
+        unpack(property_sensitivity_inputs),
         checkpoint="results/{scene}/model/best.pt",
     output:
-        table=report("results/{scene}/property.csv", caption="../report/property.rst",
-                     category=report_category, subcategory="property test",
-                     labels={"figure": "property.csv (download)", "scene": "{scene}"}),
-        plot=report("results/{scene}/plots/property.png", caption="../report/property.rst",
-                    category=report_category, subcategory="property test",
-                    labels={"figure": "property test (Fig. 14)", "scene": "{scene}"}),
+        table=report("results/{scene}/property_sensitivity.csv", caption="../report/property_sensitivity.rst",
+                     category=report_category, subcategory="property sensitivity",
+                     labels={"figure": "property_sensitivity.csv (download)", "scene": "{scene}"}),
+        plot=report("results/{scene}/plots/property_sensitivity.png", caption="../report/property_sensitivity.rst",
+                    category=report_category, subcategory="property sensitivity",
+                    labels={"figure": "property sensitivity (Fig. 14)", "scene": "{scene}"}),
     params:
-        args=property_test_args,
+        args=property_sensitivity_args,
     threads: 1
     log:
-        "results/{scene}/logs/property_test.log",
+        "results/{scene}/logs/property_sensitivity.log",
     benchmark:
-        "results/{scene}/timings/property_test.tsv"
+        "results/{scene}/timings/property_sensitivity.tsv"
     shell:
-        "graphdem property-test --checkpoint {input.checkpoint:q} {params.args:q} --out {output.table:q} "
+        "graphdem property-sensitivity --checkpoint {input.checkpoint:q} {params.args:q} --out {output.table:q} "
         "--plot {output.plot:q} --title {wildcards.scene:q} > {log} 2>&1"

@@ -1,4 +1,4 @@
-"""`graphdem property-test` (evaluation/commands/property_sensitivity.py): the sims and their DEM ensemble reruns
+"""`graphdem property-sensitivity` (evaluation/commands/property_sensitivity.py): the sims and their DEM ensemble reruns
 come together or not at all."""
 
 import pytest
@@ -9,7 +9,7 @@ from ...command_line import parse, run
 
 
 def _argv(tmp_path, *extra):
-    return ["property-test", "--checkpoint", str(tmp_path / "best.pt"), "--runs", str(tmp_path / "low"),
+    return ["property-sensitivity", "--checkpoint", str(tmp_path / "best.pt"), "--runs", str(tmp_path / "low"),
             str(tmp_path / "high"), "--sims", "shear_0001", "--property", "young", "--history", "6",
             "--out", str(tmp_path / "p.csv"), *extra]
 

@@ -1,5 +1,5 @@
-"""`graphdem stress-readout` (evaluation/commands/shear_stress.py) on toy shear sims written as H5MD: the train and
-valid sims of the split table, the epochs' history and the readout kept at the epoch of the lowest valid error."""
+"""`graphdem shear-stress-readout` (evaluation/commands/shear_stress.py) on toy shear sims written as H5MD: the train
+and valid sims of the split table, the epochs' history and the readout kept at the epoch of the lowest valid error."""
 
 import numpy as np
 import pandas as pd
@@ -41,7 +41,7 @@ def test_the_readout_is_fitted_on_the_split_s_sims_and_kept_at_its_best_epoch(tm
         rows.append({"id": f"shear_{i}", "split": split, "path": str(tmp_path / f"shear_{i}.h5")})
     pd.DataFrame(rows).to_csv(tmp_path / "splits.csv", index=False)
     settings = '{"cutoff": 0.05, "hidden": 8, "layers": 1, "epochs": 4, "lr": 0.01, "seed": 0}'
-    argv = ["stress-readout", "--splits", str(tmp_path / "splits.csv"), "--settings-json", settings,
+    argv = ["shear-stress-readout", "--splits", str(tmp_path / "splits.csv"), "--settings-json", settings,
             "--out", str(tmp_path / "readout.pt"), "--history", str(tmp_path / "history.csv"), "--no-progress"]
     run(command.register, argv)
     history = pd.read_csv(tmp_path / "history.csv")
