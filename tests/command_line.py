@@ -14,7 +14,15 @@ def parse(register, argv: list[str]) -> argparse.Namespace:
 
 
 def run(register, argv: list[str]) -> argparse.Namespace:
-    """``argv`` parsed as :func:`parse` does, then run by the function the subcommand set; its arguments."""
+    """``argv`` parsed as :func:`parse` does, then run by the function the subcommand set; its arguments. The
+    torch thread count a command sets (its --threads) is given back afterwards, so that no later test of the
+    same process computes with it."""
+    import torch
+
     args = parse(register, argv)
-    args.func(args)
+    threads = torch.get_num_threads()
+    try:
+        args.func(args)
+    finally:
+        torch.set_num_threads(threads)
     return args

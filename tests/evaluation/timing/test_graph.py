@@ -29,7 +29,11 @@ def test_a_packing_has_the_fraction_s_density_and_repeats_with_its_seed():
 
 
 def test_the_table_gives_each_case_s_edges_and_both_timings(capsys):
-    graph.main(["--repeats", "1", "--max-particles", "700"])
+    threads = torch.get_num_threads()
+    try:
+        graph.main(["--repeats", "1", "--max-particles", "700"])
+    finally:
+        torch.set_num_threads(threads)          # main sets its --threads: none left to the next test
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| 2 |")]
     assert len(rows) == 1                                     # the one case of at most 700 particles
     cells = [c.strip() for c in rows[0].strip("|").split("|")]
