@@ -1,4 +1,4 @@
-"""Surrogate stress tests: long rollouts from a perturbed history, and the same rollout in three
+"""Surrogate stability tests: long rollouts from a perturbed history, and the same rollout in three
 precisions (docs/performance.md, "Stability").
 
 A long rollout runs ``length`` times the recorded window; beyond the last recorded frame the

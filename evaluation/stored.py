@@ -1,7 +1,7 @@
 """Reading what the rollout and ensemble stages stored: a surrogate's rollout of a sim (checked against the
 checkpoint and the history it is scored with) and the DEM ensemble's rerun of a sim (checked against the sim's
 frames and particles). File readers only: they import neither torch nor the model, so the tests that score stored
-files (the property and stress tests) start fast.
+files (the property-sensitivity test, the shear-stress check) start fast.
 """
 
 from __future__ import annotations

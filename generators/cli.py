@@ -279,7 +279,7 @@ def _add_convert(sub) -> None:
 
 def _add_stability_dem(sub) -> None:
     p = sub.add_parser("stability-dem", help="run one sim at multiples of the stable DEM time step; report blow-ups",
-                       description="Stress test of the DEM: the sim of --sim run with dt = f x the stable limit "
+                       description="Stability test of the DEM: the sim of --sim run with dt = f x the stable limit "
                                    "for every f of --factors, through the same blow-up detectors as the dataset "
                                    "(non-finite values, escapes, overlaps, energy growth). Writes one row per f: "
                                    "stable, or the frame and cause of the blow-up; raw output is discarded.")

@@ -210,7 +210,7 @@ def rollout(simulator: LearnedSimulator | Ensemble, sim: Sim, n_frames: int | No
     reads (G > K: each step still sees the last K frames). ``runtime`` selects the switches of
     :mod:`surrogate.runtime` (the simulator must have been prepared with
     :func:`surrogate.runtime.apply`); None computes as in training. ``start`` replaces the first G
-    frames (e.g. a perturbed history for a stress test). ``forced`` feeds every step the data's
+    frames (e.g. a perturbed history for a stability test). ``forced`` feeds every step the data's
     window instead of the predicted one (one-step predictions on the true graphs: how an untrained
     model of some size is timed on representative graphs). It runs on the simulator's device (the sim
     is copied there); the positions come back to the CPU.

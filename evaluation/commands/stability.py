@@ -10,7 +10,7 @@ from surrogate.commands import options
 
 def register(sub) -> None:
     p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
-                       description="Stress test of the surrogate on H5MD sims: rollouts --lengths times the "
+                       description="Stability test of the surrogate on H5MD sims: rollouts --lengths times the "
                                    "recorded window from a history with random-walk noise (non-finite frames, "
                                    "escapes or particles put back into the box, the overlap distribution and "
                                    "kinetic energy per frame, the first frame outside the physical envelope, error "

@@ -131,7 +131,7 @@ def test_a_fit_recovers_a_linear_spring_law_from_the_frames_it_made():
     cfg = {"cutoff": 0.05, "hidden": 32, "layers": 2, "epochs": 300, "lr": 1e-2, "seed": 0}
     model, meta, history = stress.fit(train, valid, cfg, progress=False)
     assert meta["epoch"] == int(history["valid_mse"].idxmin()) + 1 and meta["valid_mse"] == history["valid_mse"].min()
-    # the train sims' tau / sigma_n per frame, kept for the stress test's Coulomb floor
+    # the train sims' tau / sigma_n per frame, kept for the shear-stress check's Coulomb floor
     assert len(meta["train_stress_ratio"]) == len(train)
     np.testing.assert_allclose(meta["train_stress_ratio"][4], train[4].shear_stress / train[4].normal_stress)
     for sample in valid:

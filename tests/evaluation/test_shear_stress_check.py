@@ -1,5 +1,5 @@
-"""The stress test's scoring: peaks over the predicted frames only, signed relative errors, curve RMSE, the
-pass rule, and the summary row."""
+"""The shear-stress check's scoring: peaks over the predicted frames only, signed relative errors, curve RMSE,
+the pass rule, and the summary row."""
 
 import numpy as np
 import pandas as pd

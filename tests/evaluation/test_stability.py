@@ -1,4 +1,4 @@
-"""Surrogate stress tests: blow-ups, escapes and precision are detected and reported, not hidden."""
+"""Surrogate stability tests: blow-ups, escapes and precision are detected and reported, not hidden."""
 
 from dataclasses import replace
 

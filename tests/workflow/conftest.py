@@ -1,5 +1,5 @@
-"""One ci-scale run of the slide, meteorite and shear scenes (the default ci config, with the shear's property
-test and stress test) and of the cross-check
+"""One ci-scale run of the slide, meteorite and shear scenes (the default ci config, with the shear's
+property-sensitivity test and shear-stress check) and of the cross-check
 of all four scenes in LAMMPS and YADE (with the slide's and the shear's transfer scores), shared by the
 workflow tests; two engine jobs run side by side under -c2. Under pytest-xdist the run is made once, by the
 first worker that needs it, and read by the other (a file lock in the workers' shared temporary folder)."""

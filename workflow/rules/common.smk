@@ -585,25 +585,25 @@ def _first_test_ids(wildcards, stage: str) -> list[str]:
     return ids[: stage_config(wildcards.scene, stage)["sims"]]
 
 
-def stressed_ids(wildcards) -> list[str]:
-    """The test sims of the stability stress tests (the first stability.sims)."""
+def stability_ids(wildcards) -> list[str]:
+    """The test sims of the stability tests (the first stability.sims)."""
     return _first_test_ids(wildcards, "stability")
 
 
-def stressed_sims(wildcards) -> list[str]:
-    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in stressed_ids(wildcards)]
+def stability_sims(wildcards) -> list[str]:
+    return [f"results/{wildcards.scene}/sims/{i}.h5" for i in stability_ids(wildcards)]
 
 
-def stressed_packing(wildcards) -> str:
-    first = stressed_ids(wildcards)[0]
+def stability_packing(wildcards) -> str:
+    first = stability_ids(wildcards)[0]
     return f"results/{wildcards.scene}/packings/{_row(wildcards.scene, first)['packing']}"
 
 
-def stressed_row_json(wildcards) -> str:
-    return _json(_physics(wildcards.scene, stressed_ids(wildcards)[0]))
+def stability_row_json(wildcards) -> str:
+    return _json(_physics(wildcards.scene, stability_ids(wildcards)[0]))
 
 
-def surrogate_stress_args(wildcards) -> list[str]:
+def surrogate_stability_args(wildcards) -> list[str]:
     s = stage_config(wildcards.scene, "stability")
     return ["--lengths", *(str(n) for n in s["rollout_lengths"]), "--noise", str(s["history_noise"]),
             "--seed", str(s["seed"]), "--max-overlap", str(CFG[wildcards.scene]["max_overlap"]),

@@ -1,12 +1,12 @@
-# Stage stability: stress tests of the DEM (time step at multiples of the stable limit) and of the
+# Stage stability: stability tests of the DEM (time step at multiples of the stable limit) and of the
 # surrogate (long rollouts from a perturbed history, three precisions) on the first test sims.
 rule stability_dem:
     input:
-        packing=stressed_packing,
+        packing=stability_packing,
     output:
         "results/{scene}/stability/dem.csv",
     params:
-        sim=stressed_row_json,
+        sim=stability_row_json,
         factors=stage_setting("stability", "dem_dt_factors"),
     threads: 1
     log:
@@ -21,7 +21,7 @@ rule stability_dem:
 rule stability_surrogate:
     input:
         checkpoint="results/{scene}/model/best.pt",
-        sims=stressed_sims,
+        sims=stability_sims,
     output:
         table="results/{scene}/stability/surrogate.csv",
         frames="results/{scene}/stability/frames.csv",
@@ -30,7 +30,7 @@ rule stability_surrogate:
                     labels={"figure": "long rollouts: energy and overlaps per frame", "scene": "{scene}"}),
     params:
         runtime=runtime_json,
-        args=surrogate_stress_args,
+        args=surrogate_stability_args,
         device=device_arg,
     threads: 1
     resources:
