@@ -4,7 +4,7 @@ Every sim keeps its own radius graph (built per sim as :func:`surrogate.rollout.
 builds it, so no edge joins two sims), its own kinematic particles (their next position is its
 data's), its own ``keep_in_domain`` and ``contact_correction`` corrections (with its own particle
 radii; :func:`surrogate.rollout.correct_step`) and its own non-finite detection. The graphs of a
-step are stacked with offset edge indices (:func:`surrogate.simulator.stack_graphs`), the network
+step are stacked with offset edge indices (:func:`surrogate.graph.stack_graphs`), the network
 runs once on the union, and its output is split back per sim. Each message-passing round only
 gathers along edges and every MLP works row by row, so each sim's prediction equals its single
 rollout up to the rounding of the larger matrix products.
@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from surrogate import devices, samples
+from surrogate.graph import stack_graphs
 from surrogate.rollout import (
     Rollout,
     finish_step,
@@ -37,7 +38,7 @@ from surrogate.rollout import (
 )
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
-from surrogate.simulator import LearnedSimulator, stack_graphs
+from surrogate.simulator import LearnedSimulator
 
 if TYPE_CHECKING:
     from surrogate.ensemble import Ensemble

@@ -27,8 +27,9 @@ import torch
 from torch import nn
 
 from surrogate import checkpoint
+from surrogate.graph import Graph
 from surrogate.provenance import as_paths
-from surrogate.simulator import Graph, LearnedSimulator, advance, next_frame
+from surrogate.simulator import LearnedSimulator, advance, next_frame
 
 SHARED_MODEL = ("history", "max_neighbours", "properties", "bundle")
 SHARED_STATS = ("dim", "connectivity_radius", "frame_interval", "bounds", "n_types", "scene", "kinematic_species",

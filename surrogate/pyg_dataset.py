@@ -27,9 +27,9 @@ from pathlib import Path
 import pandas as pd
 from torch_geometric.data import Data, Dataset
 
+from surrogate.graph import build_graph
 from surrogate.neighbours import check_cap
 from surrogate.samples import load_sim, sample_index
-from surrogate.simulator import build_graph
 
 
 class SimDataset(Dataset):

@@ -33,9 +33,10 @@ from scipy.spatial import cKDTree
 from generators import h5md
 from surrogate import devices, samples
 from surrogate.correction import correct_overlaps, stop_at_kinematic
+from surrogate.graph import Graph, build_graph, neighbour_edges, prune_isolated
 from surrogate.runtime import Runtime
 from surrogate.samples import Sim
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, neighbour_edges, prune_isolated
+from surrogate.simulator import LearnedSimulator
 
 if TYPE_CHECKING:
     from surrogate.ensemble import Ensemble

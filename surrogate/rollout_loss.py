@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import torch
 
+from surrogate.graph import Graph, build_graph, stack_graphs
 from surrogate.rollout import kinematic_frames
 from surrogate.samples import Sim, to_device
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, stack_graphs
+from surrogate.simulator import LearnedSimulator
 
 
 def rollout_starts(sims: list[Sim], history: int, frames: int | None, generator: torch.Generator) -> list[int]:

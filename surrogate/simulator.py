@@ -19,96 +19,19 @@ whatever the caller supplies (the data), and the graph has no kinematic-kinemati
 
 With the model config's ``max_neighbours`` = N, every graph the simulator is given (training, validation,
 rollout) keeps each receiver's N nearest senders (:func:`surrogate.graph.cap_neighbours`); the graph
-records the receivers capped and the edges dropped.
+records the receivers capped and the edges dropped. The graph itself (:class:`surrogate.graph.Graph`, built by
+:func:`surrogate.graph.build_graph`) is surrogate/graph.py's.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import numpy as np
 import torch
 from torch import nn
 
-from surrogate.graph import CappedEdges, cap_neighbours, radius_graph
+from surrogate.graph import Graph, prune_isolated
 from surrogate.model.constructor import boundary_features, check_edge_features
 from surrogate.model.graphdem import GraphDEM
 from surrogate.neighbours import check_cap
-
-
-@dataclass
-class Graph:
-    """Model inputs of one or several disjoint samples stacked along the particle axis."""
-
-    window: torch.Tensor        # [K, N, D] positions (m)
-    types: torch.Tensor         # [N] long
-    kinematic: torch.Tensor     # [N] bool
-    edge_index: torch.Tensor    # [2, E]
-    props: torch.Tensor | None  # [N, F] normalised properties, None for a scene without any
-    capped_receivers: int = 0   # receivers that had more senders than the neighbour cap (0 without a cap)
-    dropped_edges: int = 0      # edges the neighbour cap dropped
-
-
-def neighbour_edges(position: torch.Tensor, radius: float, kinematic: torch.Tensor | np.ndarray | None,
-                    max_neighbours: int | None = None) -> CappedEdges:
-    """The radius graph of one frame ``position`` [N, D] on its device (no edge between two ``kinematic``
-    particles when given), cut to ``max_neighbours`` senders per receiver when set (null: the radius
-    graph as it is, nothing counted)."""
-    edges = radius_graph(position, radius, kinematic).to(position.device)
-    if max_neighbours is None:
-        return CappedEdges(edges, 0, 0)
-    return cap_neighbours(edges, position, max_neighbours)
-
-
-def build_graph(window: torch.Tensor, types: torch.Tensor, kinematic: torch.Tensor, radius: float,
-                props: torch.Tensor | None = None, skip_kinematic_pairs: bool = True,
-                max_neighbours: int | None = None) -> Graph:
-    """One sample's graph on its last frame (edges rebuilt every step, article 4.2.2); no edge
-    between two kinematic particles unless ``skip_kinematic_pairs`` is off (a runtime switch); each
-    receiver's ``max_neighbours`` nearest senders where that cap is set. The edges live on the window's
-    device, wherever the neighbour search ran."""
-    edges = neighbour_edges(window[-1], radius, kinematic if skip_kinematic_pairs else None, max_neighbours)
-    return Graph(window, types, kinematic, edges.edge_index, props, edges.capped_receivers, edges.dropped_edges)
-
-
-def prune_isolated(graph: Graph) -> tuple[Graph, torch.Tensor]:
-    """The graph without the unpredicted particles (``graph.kinematic``) whose only edge is their self edge.
-
-    Such a particle neither sends to nor receives from any other node, so it cannot change any
-    prediction: leaving it out is exact, and it saves the node MLPs of every updater (in the
-    Solid-GN scenes two thirds of the nodes are wall particles far from the soil). Returns the
-    reduced graph and the indices of the kept particles in the full one.
-    """
-    edges = graph.edge_index
-    keep = ~graph.kinematic
-    linked = edges[:, edges[0] != edges[1]]
-    keep[linked[0]] = True
-    keep[linked[1]] = True
-    index = keep.nonzero().squeeze(1)
-    remap = torch.full((keep.numel(),), -1, dtype=torch.long, device=edges.device)
-    remap[index] = torch.arange(index.numel(), device=edges.device)
-    sub_edges = remap[edges]
-    sub_edges = sub_edges[:, (sub_edges >= 0).all(dim=0)]
-    props = None if graph.props is None else graph.props[index]
-    return Graph(graph.window[:, index], graph.types[index], graph.kinematic[index], sub_edges, props,
-                 graph.capped_receivers, graph.dropped_edges), index
-
-
-def stack_graphs(graphs: list[Graph]) -> Graph:
-    """Disjoint union of several samples (a mini-batch), edge indices offset per sample."""
-    if len(graphs) == 1:
-        return graphs[0]
-    offsets = np.cumsum([0] + [g.types.numel() for g in graphs[:-1]])
-    props = [g.props for g in graphs]
-    return Graph(
-        window=torch.cat([g.window for g in graphs], dim=1),
-        types=torch.cat([g.types for g in graphs]),
-        kinematic=torch.cat([g.kinematic for g in graphs]),
-        edge_index=torch.cat([g.edge_index + int(o) for g, o in zip(graphs, offsets, strict=True)], dim=1),
-        props=None if props[0] is None else torch.cat(props),
-        capped_receivers=sum(g.capped_receivers for g in graphs),
-        dropped_edges=sum(g.dropped_edges for g in graphs),
-    )
 
 
 class LearnedSimulator(nn.Module):
@@ -220,8 +143,8 @@ def advance(window: torch.Tensor, acceleration: torch.Tensor) -> torch.Tensor:
 
 
 def moving_acceleration(model: nn.Module, graph: Graph) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """``model``'s prediction for the moving particles of the pruned graph (:func:`prune_isolated`): their indices
-    in ``graph``, their window ``[K, M, D]`` and their normalised accelerations ``[M, B D]``."""
+    """``model``'s prediction for the moving particles of the pruned graph (:func:`surrogate.graph.prune_isolated`):
+    their indices in ``graph``, their window ``[K, M, D]`` and their normalised accelerations ``[M, B D]``."""
     reduced, index = prune_isolated(graph)
     moving = (~reduced.kinematic).nonzero().squeeze(1)
     return index[moving], reduced.window[:, moving], model(reduced, decode=moving)

@@ -29,7 +29,8 @@ import pandas as pd
 import torch
 
 from surrogate import checkpoint, devices
-from surrogate.simulator import LearnedSimulator, build_graph, prune_isolated
+from surrogate.graph import build_graph, prune_isolated
+from surrogate.simulator import LearnedSimulator
 
 COLUMNS = ["particles", "edges", "edges_per_particle", "peak_bytes", "bytes_per_particle", "seconds", "fits"]
 

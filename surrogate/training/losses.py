@@ -9,9 +9,10 @@ from dataclasses import dataclass
 import torch
 
 from surrogate import devices, distributed
+from surrogate.graph import Graph, build_graph, prune_isolated, stack_graphs
 from surrogate.noise import random_walk_position_noise
 from surrogate.samples import Sim
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, moving_acceleration, prune_isolated, stack_graphs
+from surrogate.simulator import LearnedSimulator, moving_acceleration
 
 
 def mirror_x(positions: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:

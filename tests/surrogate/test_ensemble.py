@@ -14,9 +14,10 @@ from surrogate import checkpoint, ensemble
 from surrogate import runtime as rt
 from surrogate.batched import rollout_batch
 from surrogate.ensemble import Ensemble
+from surrogate.graph import build_graph, prune_isolated
 from surrogate.rollout import rollout
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator, advance, build_graph, prune_isolated
+from surrogate.simulator import LearnedSimulator, advance
 from tests.surrogate import synthetic
 
 RUNTIMES = {

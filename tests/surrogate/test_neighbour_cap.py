@@ -13,10 +13,10 @@ from generators import config, h5md
 from graphdem import cli
 from surrogate import checkpoint, dataset, train
 from surrogate import runtime as rt
-from surrogate.graph import radius_graph
+from surrogate.graph import neighbour_edges, radius_graph
 from surrogate.rollout import rollout
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator, neighbour_edges
+from surrogate.simulator import LearnedSimulator
 from tests.surrogate import synthetic
 
 CAP = 5

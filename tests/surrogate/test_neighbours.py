@@ -5,9 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from surrogate.graph import cap_neighbours, radius_graph
+from surrogate.graph import build_graph, cap_neighbours, neighbour_edges, prune_isolated, radius_graph, stack_graphs
 from surrogate.neighbours import Histogram, check_cap, neighbour_counts
-from surrogate.simulator import build_graph, neighbour_edges, prune_isolated, stack_graphs
 
 METHODS = ["kdtree", "cells"]
 

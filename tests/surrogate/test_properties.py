@@ -8,8 +8,9 @@ import torch
 
 from generators import h5md
 from surrogate import dataset
+from surrogate.graph import build_graph
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator, build_graph
+from surrogate.simulator import LearnedSimulator
 
 
 def write_sim(path, young: float, seed: int = 0):

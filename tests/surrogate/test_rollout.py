@@ -8,8 +8,9 @@ import torch
 from evaluation.baseline import constant_velocity
 from generators import h5md
 from surrogate import rollout, runtime
+from surrogate.graph import build_graph
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator, build_graph
+from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 import torch
 
+from surrogate.graph import Graph, build_graph
 from surrogate.rollout import rollout
 from surrogate.rollout_loss import rollout_loss, rollout_starts
 from surrogate.samples import load_sim
-from surrogate.simulator import Graph, LearnedSimulator, build_graph
+from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 

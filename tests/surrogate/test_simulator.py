@@ -1,7 +1,8 @@
 import numpy as np
 import torch
 
-from surrogate.simulator import Graph, LearnedSimulator, build_graph, prune_isolated, stack_graphs
+from surrogate.graph import Graph, build_graph, prune_isolated, stack_graphs
+from surrogate.simulator import LearnedSimulator
 
 STATS = {"dim": 2, "bounds": [[0.0, 1000.0], [0.0, 1000.0]], "connectivity_radius": 3.0, "n_types": 2,
          "velocity_mean": [0.1, -0.2], "velocity_std": [0.5, 0.4],

@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from surrogate import checkpoint, devices, train
+from surrogate.graph import build_graph
 from surrogate.samples import load_sim, sample_index
-from surrogate.simulator import build_graph
 
 pytestmark = pytest.mark.engine
 

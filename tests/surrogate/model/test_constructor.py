@@ -3,8 +3,9 @@ import math
 import pytest
 import torch
 
+from surrogate.graph import build_graph
 from surrogate.model.constructor import EDGE_FEATURES, EdgeConstructor, edge_feature_width, edge_inputs
-from surrogate.simulator import LearnedSimulator, build_graph
+from surrogate.simulator import LearnedSimulator
 
 ALL = list(EDGE_FEATURES)
 
