@@ -79,3 +79,21 @@ def test_an_unknown_subcommand_is_refused_with_the_list(capsys):
         cli.main(["no-such-command"])
     assert exc.value.code == 2
     assert "invalid choice: 'no-such-command'" in capsys.readouterr().err
+
+
+def test_scene_options_take_scenes_only_and_a_public_benchmark_is_a_benchmark_option():
+    """--scene names a registered scene in every subcommand; a public benchmark is --benchmark."""
+    from generators import config, scenes
+    for name, parser in _subcommands(cli.build_parser()).items():
+        for action in parser._actions:
+            if "--scene" in action.option_strings and action.choices is not None:
+                assert set(action.choices) <= set(scenes.names()), name
+    rest = {"dataset": ["--table", "t.csv", "--out-dir", "d", "--connectivity-radius", "1"], "train": []}
+    for command, others in rest.items():
+        parser = _subcommands(cli.build_parser())[command]
+        for bench in config.BENCHMARKS:
+            assert parser.parse_args(["--benchmark", bench, *others]).name == bench
+        assert parser.parse_args(["--scene", "slide", *others]).name == "slide"
+        for argv in (["--scene", "slide_samer"], ["--scene", "slide", "--benchmark", "slide_samer"]):
+            with pytest.raises(SystemExit):
+                parser.parse_args([*argv, *others])

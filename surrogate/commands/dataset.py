@@ -6,8 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from generators import cli as gcli
-from generators import scenes
+from surrogate.commands import options
 
 
 def register(sub) -> None:
@@ -15,7 +14,7 @@ def register(sub) -> None:
                        description="Split table and normalisation statistics of the train split. --table is a "
                                    "scene's sweep.csv (id, split; the files are --sims/<id>.h5) or a split table "
                                    "with a path column, such as the one import-solidgn writes.")
-    p.add_argument("--scene", choices=scenes.names() + list(gcli.gconfig.BENCHMARKS), required=True)
+    options.scene_or_benchmark(p, True, "the sims are of (the plot's title)")
     p.add_argument("--table", type=Path, required=True, help="sweep.csv or a split table (id, split[, path])")
     p.add_argument("--sims", type=Path, help="folder of <id>.h5 files, for a table without a path column")
     p.add_argument("--out-dir", type=Path, required=True)
@@ -90,7 +89,7 @@ def _plot_first_train_sim(args) -> None:
     traj = h5md.read(first["path"])
     names = {int(k): v for k, v in dict(traj.parameters.get("species_names") or {}).items()}
     position, radius, lower, upper = traj.position, traj.radius, traj.box_lower, traj.box_upper
-    title, ylabel = f"{args.scene}: {first['id']}", "y (m)"
+    title, ylabel = f"{args.name}: {first['id']}", "y (m)"
     if traj.dim == 3:                       # a vertical section through the middle, seen from the side
         mid = 0.5 * float(lower[1] + upper[1])
         position, radius = plots.plane_section(position, radius, mid, axis=1)

@@ -38,12 +38,23 @@ def checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True, 
     device_option(p, "auto")
 
 
+def scene_or_benchmark(p: argparse.ArgumentParser, required: bool, what: str) -> None:
+    """``--scene`` (a registered scene) or ``--benchmark`` (a public benchmark), never both, into ``args.name``:
+    ``what`` says what the subcommand takes of it."""
+    from generators import scenes
+    group = p.add_mutually_exclusive_group(required=required)
+    group.add_argument("--scene", dest="name", choices=scenes.names(), help=f"the scene {what}")
+    group.add_argument("--benchmark", dest="name", choices=sorted(gcli.gconfig.BENCHMARKS),
+                       help=f"the public benchmark {what}")
+
+
 def device_option(p: argparse.ArgumentParser, default: str | None) -> None:
     from surrogate import devices
     p.add_argument("--device", type=device_arg, default=default,
                    help=f"where the model computes: {devices.CHOICES} (auto: the first CUDA GPU torch sees, else the "
                         "CPU; under torchrun each process takes its LOCAL_RANK's GPU; docs/scaling.md)"
-                        + ("" if default else "; default: the config's device key with --scene, else auto"))
+                        + ("" if default else "; default: the config's device key with --scene or --benchmark, "
+                                              "else auto"))
 
 
 def device_arg(value: str) -> str:

@@ -16,18 +16,18 @@ def register(sub) -> None:
                        description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
                                    "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
                                    "used to resume) and history.csv into --out-dir. The model and training "
-                                   "settings are the --scene's section of the workflow's config: the package "
-                                   "defaults, --config files and --set keys, e.g. graphdem train --scene slide "
-                                   "--set scale=ci --set slide.train.lr=1e-3 (graphdem config prints the result).",
-                       epilog="Paths default to the workflow's: results/<scene>/dataset/{stats.json,splits.csv} "
-                              "and results/<scene>/model/.")
-    p.add_argument("--scene", choices=scenes.names() + sorted(gcli.gconfig.BENCHMARKS),
-                   help="the scene or public benchmark whose model and train sections to use")
+                                   "settings are the section of the --scene or --benchmark in the workflow's "
+                                   "config: the package defaults, --config files and --set keys, e.g. graphdem "
+                                   "train --scene slide --set scale=ci --set slide.train.lr=1e-3 (graphdem config "
+                                   "prints the result).",
+                       epilog="Paths default to the workflow's: results/<name>/dataset/{stats.json,splits.csv} "
+                              "and results/<name>/model/, <name> the scene or public benchmark.")
+    options.scene_or_benchmark(p, False, "whose model and train sections to use")
     gcli.config_options(p)
-    p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<scene>/dataset/stats.json)")
-    p.add_argument("--splits", type=Path, help="dataset splits.csv (default results/<scene>/dataset/splits.csv)")
-    p.add_argument("--out-dir", type=Path, help="checkpoint folder (default results/<scene>/model)")
-    # the workflow passes its already resolved sections (internal; users give --scene/--config/--set)
+    p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<name>/dataset/stats.json)")
+    p.add_argument("--splits", type=Path, help="dataset splits.csv (default results/<name>/dataset/splits.csv)")
+    p.add_argument("--out-dir", type=Path, help="checkpoint folder (default results/<name>/model)")
+    # the workflow passes its already resolved sections (internal; users give --scene or --benchmark, --config, --set)
     p.add_argument("--model-json", type=options.json_arg, help=argparse.SUPPRESS)
     p.add_argument("--train-json", type=options.json_arg, help=argparse.SUPPRESS)
     p.add_argument("--threads", type=int, default=1,
@@ -53,21 +53,22 @@ def run(args) -> None:
 
 def sections(args) -> tuple[dict, dict, str, Path, Path, Path]:
     """The model and train config, the device, and the stats, splits and output folder, of ``graphdem train``:
-    from the resolved config's section of --scene (the workflow's keys), or from the rule's resolved sections.
+    from the resolved config's section of --scene or --benchmark (the workflow's keys), or from the rule's resolved
+    sections.
     --device wins over the config's ``device``; without either, auto."""
     if args.model_json is not None or args.train_json is not None:
-        if args.model_json is None or args.train_json is None or args.scene or args.config_file or args.set:
+        if args.model_json is None or args.train_json is None or args.name or args.config_file or args.set:
             raise SystemExit("graphdem train: --model-json and --train-json (the workflow's resolved sections) go "
-                             "together and replace --scene, --config and --set")
+                             "together and replace --scene or --benchmark, --config and --set")
         model, train_cfg, where, device = args.model_json, args.train_json, None, args.device or "auto"
     else:
-        if not args.scene:
-            raise SystemExit("graphdem train: give --scene (a scene or public benchmark: "
-                             f"{', '.join(scenes.names() + sorted(gcli.gconfig.BENCHMARKS))}) to train with its "
-                             "model and train config")
+        if not args.name:
+            raise SystemExit(f"graphdem train: give --scene (one of {', '.join(scenes.names())}) or --benchmark "
+                             f"(one of {', '.join(sorted(gcli.gconfig.BENCHMARKS))}) to train with its model and "
+                             "train config")
         resolved = gcli.resolved_config(args)
-        section = resolved[args.scene]
-        model, train_cfg, where = section["model"], section["train"], Path("results") / args.scene
+        section = resolved[args.name]
+        model, train_cfg, where = section["model"], section["train"], Path("results") / args.name
         device = args.device or resolved["device"]
     paths = []
     for value, default in ((args.stats, "dataset/stats.json"), (args.splits, "dataset/splits.csv"),

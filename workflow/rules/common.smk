@@ -117,6 +117,11 @@ def is_scene(wildcards) -> bool:
     return wildcards.name in SCENES
 
 
+def scene_or_benchmark_option(wildcards) -> list[str]:
+    """A job's scene or public benchmark as the option `graphdem` takes it: --scene or --benchmark."""
+    return ["--scene" if is_scene(wildcards) else "--benchmark", wildcards.name]
+
+
 def scene_config_json(wildcards) -> str:
     """The scene's DEM and sweep settings (what the sweep table depends on: not how an engine runs)."""
     return _json({k: v for k, v in CFG[wildcards.scene].items() if k not in (*SURROGATE_KEYS, *EXECUTION_KEYS)})

@@ -11,12 +11,13 @@ rule dataset:
                     category=report_category, subcategory="dataset",
                     labels={"figure": "dataset sample (first and last frame)", "scene": "{name}"}),
     params:
+        name=scene_or_benchmark_option,
         radius=connectivity_radius,
     log:
         "results/{name}/logs/dataset.log",
     benchmark:
         "results/{name}/timings/dataset.tsv"
     shell:
-        "graphdem dataset --scene {wildcards.name} --table {input.table:q} --sims results/{wildcards.name}/sims "
+        "graphdem dataset {params.name:q} --table {input.table:q} --sims results/{wildcards.name}/sims "
         "--out-dir results/{wildcards.name}/dataset --connectivity-radius {params.radius:q} "
         "--plot {output.plot:q} > {log} 2>&1"

@@ -36,7 +36,8 @@ def test_the_workflow_s_sections_replace_the_scene_and_name_every_file():
 @pytest.mark.parametrize("argv, message", [
     ([], "give --scene"),
     (["--model-json", "{}"], "--model-json and --train-json .* go together"),
-    (["--model-json", "{}", "--train-json", "{}", "--scene", "slide"], "replace --scene, --config and --set"),
+    (["--model-json", "{}", "--train-json", "{}", "--scene", "slide"],
+     "replace --scene or --benchmark, --config and --set"),
     (["--model-json", "{}", "--train-json", "{}", "--stats", "s.json"], "--stats, --splits and --out-dir are needed"),
 ])
 def test_sections_given_two_ways_or_half_are_refused(argv, message):
