@@ -342,7 +342,8 @@ def _add_crosscheck(sub) -> None:
         p.add_argument(f"--{name}", type=Path, nargs="+", help=f"the sims run in {name.upper()} (H5MD)")
     p.add_argument("--chaos", type=Path, nargs="+",
                    help="the same sims rerun by one of the engines from perturbed packings (the DEM's own chaos)")
-    p.add_argument("--tolerance", type=float, default=0.05, help="relative tolerance on each metric's mean")
+    p.add_argument("--tolerance", type=float, default=gconfig.defaults()["crosscheck"]["tolerance"],
+                   help="relative tolerance on each metric's mean (default: the config's crosscheck.tolerance)")
     p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
     p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")

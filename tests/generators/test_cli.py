@@ -62,3 +62,9 @@ def test_the_physics_check_of_a_scene_without_one_is_refused_naming_those_with_o
     err = capsys.readouterr().err
     assert code == 1 and "the slide scene has no physics check; scenes with one: collapse" in err
     assert not (tmp_path / "out.csv").exists()
+
+
+def test_the_crosscheck_tolerance_defaults_to_the_configs():
+    from generators import config
+    args = cli.build_parser().parse_args(["crosscheck", "--combine", "a.csv", "--out", "b.csv"])
+    assert args.tolerance == config.defaults()["crosscheck"]["tolerance"]
