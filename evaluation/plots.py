@@ -139,9 +139,14 @@ def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
     ax.set_ylim(bottom=0.0, top=float(scored["mse"].max()) * 8 if len(positive) else None)
     ax.set_xlabel("wall time per rollout (s, log)")
     ax.set_ylabel("rollout MSE against the DEM data (m$^2$)")
+    return _finish(fig, ax, path, title, legend_size=8)
+
+
+def _finish(fig, ax, path: Path, title: str, legend_size: int) -> Path:
+    """Title, log grid and legend of a one-panel performance plot; written atomically to ``path`` and closed."""
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=legend_size)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=130)
     plt.close(fig)
@@ -174,13 +179,7 @@ def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> 
     ax.set_yscale("log")
     ax.set_xlabel("DEM sub-steps per recorded frame (log; dots: each contender's own)")
     ax.set_ylabel(f"speed-up of {main} over the DEM (log)")
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=130)
-    plt.close(fig)
-    return Path(path)
+    return _finish(fig, ax, path, title, legend_size=7)
 
 
 def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:

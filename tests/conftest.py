@@ -102,3 +102,22 @@ def pytest_xdist_node_collection_finished(node, ids):
         raise pytest.UsageError(
             f"pytest-xdist ignored the xdist_group marks (pytest {pytest.__version__}; e.g. {ungrouped[0]}): "
             "install the pins of constraints.txt (`make install`), under which the tests share their fixtures")
+
+
+@pytest.fixture
+def saved_checkpoint(tiny_dataset, tmp_path):
+    """An initialised (seed 0) simulator of the tiny dataset saved as a checkpoint: its path, the path of the
+    first test sim, and the dataset statistics."""
+    import json
+
+    import torch
+
+    from surrogate import checkpoint
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    simulator = LearnedSimulator(stats, tiny_dataset["model"])
+    checkpoint.save(tmp_path / "best.pt", {"model": simulator.state_dict(),
+                                           "json": {"stats": stats, "model": tiny_dataset["model"]}})
+    table = tiny_dataset["split_table"]
+    return tmp_path / "best.pt", table.loc[table["split"] == "test", "path"].iloc[0], stats

@@ -1,30 +1,21 @@
 """The Python API: a checkpoint loaded, rolled out on a trajectory (in memory or a file), and scored."""
 
-import json
 
 import numpy as np
 import pytest
-import torch
 
 from generators import h5md
-from surrogate import api, checkpoint
+from surrogate import api
 from surrogate import rollout as rollouts
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 
 
 @pytest.fixture
-def saved(tiny_dataset, tmp_path):
+def saved(saved_checkpoint):
     """An initialised (seed 0) simulator saved as a checkpoint, and the path of the first test sim."""
-    stats = json.loads(tiny_dataset["stats_json"])
-    torch.manual_seed(0)
-    simulator = LearnedSimulator(stats, tiny_dataset["model"])
-    checkpoint.save(tmp_path / "best.pt", {"model": simulator.state_dict(),
-                                           "json": {"stats": stats, "model": tiny_dataset["model"]}})
-    table = tiny_dataset["split_table"]
-    return tmp_path / "best.pt", table.loc[table["split"] == "test", "path"].iloc[0]
+    return saved_checkpoint[:2]
 
 
 def test_a_checkpoint_rolls_out_as_the_rollout_stage_does(saved):

@@ -5,12 +5,10 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-import torch
 
 from evaluation.timing import rollout
-from surrogate import checkpoint, contacts
+from surrogate import contacts
 from surrogate.samples import load_sim
-from surrogate.simulator import LearnedSimulator
 
 pytestmark = pytest.mark.engine
 
@@ -19,15 +17,9 @@ CONFIGURED = {"split_edge_mlp": True, "skip_kinematic_pairs": True, "prune_isola
 
 
 @pytest.fixture
-def saved(tiny_dataset, tmp_path):
-    """An initialised (seed 0) simulator saved as a checkpoint, and the path of the first test sim."""
-    stats = json.loads(tiny_dataset["stats_json"])
-    torch.manual_seed(0)
-    simulator = LearnedSimulator(stats, tiny_dataset["model"])
-    checkpoint.save(tmp_path / "best.pt", {"model": simulator.state_dict(),
-                                           "json": {"stats": stats, "model": tiny_dataset["model"]}})
-    table = tiny_dataset["split_table"]
-    return tmp_path / "best.pt", table.loc[table["split"] == "test", "path"].iloc[0], stats
+def saved(saved_checkpoint):
+    """An initialised (seed 0) simulator saved as a checkpoint, the path of the first test sim, its statistics."""
+    return saved_checkpoint
 
 
 def test_the_table_has_every_batch_and_radius_with_its_graph_and_contact_misses(saved, tmp_path, capsys):
