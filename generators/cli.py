@@ -9,12 +9,23 @@ Every subcommand writes its outputs atomically and exits non-zero with a one-lin
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import pickle
+from collections.abc import Callable
 from pathlib import Path
 
 from generators import config as gconfig
 from generators import engines, scenes
+
+
+def add_command(sub, name: str, run: Callable[[argparse.Namespace], None], help: str,
+                epilog: str | None = None) -> argparse.ArgumentParser:
+    """Add the subcommand ``name`` to the `graphdem` subparsers ``sub``: `graphdem --help` lists it with ``help``, its
+    own ``--help`` describes it with ``run``'s docstring (and ends with ``epilog``), and it runs ``run(args)``."""
+    parser = sub.add_parser(name, help=help, description=inspect.getdoc(run), epilog=epilog)
+    parser.set_defaults(func=run)
+    return parser
 
 
 def json_arg(text: str) -> dict:
@@ -63,6 +74,8 @@ def resolved_config(args) -> dict:
 
 
 def cmd_config(args) -> None:
+    """The package defaults with the chosen scale preset, --config files and --set keys on top, validated against the
+    schema: what the workflow runs with."""
     import yaml
     print(yaml.safe_dump(resolved_config(args), sort_keys=False))
 
@@ -104,6 +117,9 @@ def cmd_convert(args) -> None:
 
 
 def cmd_stability_dem(args) -> None:
+    """Stability test of the DEM: the sim of --sim run with dt = f x the stable limit for every f of --factors, through
+    the same blow-up detectors as the dataset (non-finite values, escapes, overlaps, energy growth). Writes one row
+    per f: stable, or the frame and cause of the blow-up; raw output is discarded."""
     import tempfile
 
     from generators import stability
@@ -118,6 +134,11 @@ def cmd_stability_dem(args) -> None:
 
 
 def cmd_restitution(args) -> None:
+    """Collide two spheres of the scene's material head-on in each engine, at each --dt-safety x the scene's stable
+    limit, for its smallest and its nominal sphere, at --phases approach speeds (each starts the contact at another
+    point of a time step); report the largest and median error of the restitution against the configured one. The
+    design asks for at most 2 %: the cheapest step a scene can take is the largest that passes in every row
+    (docs/performance.md, "The DEM's time step")."""
     import tempfile
 
     from generators import collision
@@ -144,6 +165,9 @@ def cmd_restitution(args) -> None:
 
 
 def cmd_import_solidgn(args) -> None:
+    """Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl trajectories) into
+    DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are read with an unpickler that admits numpy arrays and
+    nothing else."""
     from generators.solidgn import convert
     limits = {}
     for item in args.limit or []:
@@ -176,6 +200,12 @@ def positive_int(text: str) -> int:
 
 
 def cmd_export(args) -> None:
+    """Write TRAJECTORY (an H5MD sim or Graph-DEM rollout) as the ParaView time series --out NAME.pvd: one .vtu per
+    exported frame in the folder NAME/ beside it, each frame's time in the .pvd. Point data: id, type (species),
+    radius (m), mass (kg), kinematic (0/1), velocity (m/s; backward difference of the recorded frames, the first
+    frame takes the forward one), every per-particle property by name, and with --truth the rollout error: error (m,
+    distance to the truth's position) and error_radii (in the particle's radii). 2D gets z = 0. Written atomically:
+    the .pvd appears last. Open NAME.pvd in ParaView (docs/export.md)."""
     from generators import export
     folder = export.frames_dir(args.out).resolve()
     for flag, given in (("", args.trajectory), ("--truth ", args.truth)):
@@ -189,6 +219,9 @@ def cmd_export(args) -> None:
 
 
 def cmd_crosscheck(args) -> None:
+    """One row per scene metric and pair of engines (its value at each sim's last frame): both engines' mean and
+    standard deviation over the sims, their relative difference and pass/fail against the larger of --tolerance and
+    the combined standard error (docs/crosscheck.md). With --combine, stack finished tables instead."""
     import pandas as pd
 
     from generators import crosscheck
@@ -206,6 +239,8 @@ def cmd_crosscheck(args) -> None:
 
 
 def cmd_transfer(args) -> None:
+    """Stack two `graphdem evaluate` tables of one checkpoint: on the test sims of the engine it was trained on
+    (--same) and on the same rows run in the other engine (--other)."""
     import pandas as pd
 
     from generators import crosscheck
@@ -217,6 +252,8 @@ def cmd_transfer(args) -> None:
 
 
 def cmd_physics(args) -> None:
+    """The scene's own physics check on its sims, e.g. the column collapse's runout against the aspect ratio beside the
+    published laws (docs/collapse-scene.md)."""
     from generators import h5md
     scene = scenes.get(args.scene)
     if not scene.has_physics:
@@ -234,72 +271,55 @@ def _ranks_option(p: argparse.ArgumentParser) -> None:
 
 
 def _add_config(sub) -> None:
-    p = sub.add_parser("config", help="print the resolved, validated configuration",
-                       description="The package defaults with the chosen scale preset, --config files and --set keys "
-                                   "on top, validated against the schema: what the workflow runs with.")
+    p = add_command(sub, "config", cmd_config, help="print the resolved, validated configuration")
     config_options(p)
-    p.set_defaults(func=cmd_config)
 
 
 def _add_sweep(sub) -> None:
-    p = sub.add_parser("sweep", help="write the sweep table (one row per simulation)")
+    p = add_command(sub, "sweep", cmd_sweep, help="write the sweep table (one row per simulation)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--config-json", type=json_arg, required=True, help="the scene's resolved config section")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
-    p.set_defaults(func=cmd_sweep)
 
 
 def _add_prepare(sub) -> None:
-    p = sub.add_parser("prepare", help="settle one packing under gravity (shared by many sims)")
+    p = add_command(sub, "prepare", cmd_prepare, help="settle one packing under gravity (shared by many sims)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--engine", choices=engines.names(), required=True, help="the engine that settles it")
     p.add_argument("--params", type=json_arg, required=True, help="packing parameters (JSON)")
     p.add_argument("--out", type=Path, required=True, help="packing folder to write")
     _ranks_option(p)
-    p.set_defaults(func=cmd_prepare)
 
 
 def _add_simulate(sub) -> None:
-    p = sub.add_parser("simulate", help="run one simulation of the sweep with the DEM engine")
+    p = add_command(sub, "simulate", cmd_simulate, help="run one simulation of the sweep with the DEM engine")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="the sim's sweep row (JSON)")
     p.add_argument("--packing", type=Path, required=True, help="settled packing folder")
     p.add_argument("--out", type=Path, required=True, help="raw output folder to write")
     _ranks_option(p)
-    p.set_defaults(func=cmd_simulate)
 
 
 def _add_convert(sub) -> None:
-    p = sub.add_parser("convert", help="convert a raw engine output folder to H5MD")
+    p = add_command(sub, "convert", cmd_convert, help="convert a raw engine output folder to H5MD")
     p.add_argument("--raw", type=Path, required=True,
                    help="a simulate stage's raw folder (its run.json names the scene and the engine)")
     p.add_argument("--out", type=Path, required=True, help="H5MD file to write")
-    p.set_defaults(func=cmd_convert)
 
 
 def _add_stability_dem(sub) -> None:
-    p = sub.add_parser("stability-dem", help="run one sim at multiples of the stable DEM time step; report blow-ups",
-                       description="Stability test of the DEM: the sim of --sim run with dt = f x the stable limit "
-                                   "for every f of --factors, through the same blow-up detectors as the dataset "
-                                   "(non-finite values, escapes, overlaps, energy growth). Writes one row per f: "
-                                   "stable, or the frame and cause of the blow-up; raw output is discarded.")
+    p = add_command(sub, "stability-dem", cmd_stability_dem,
+                    help="run one sim at multiples of the stable DEM time step; report blow-ups")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="one row of the sweep table (JSON)")
     p.add_argument("--packing", type=Path, required=True, help="the sim's settled packing (prepare stage)")
     p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
     p.add_argument("--out", type=Path, required=True, help="CSV report")
-    p.set_defaults(func=cmd_stability_dem)
 
 
 def _add_restitution(sub) -> None:
-    p = sub.add_parser("restitution", help="measure a scene's two-sphere restitution at chosen DEM time steps",
-                       description="Collide two spheres of the scene's material head-on in each engine, at each "
-                                   "--dt-safety x the scene's stable limit, for its smallest and its nominal sphere, "
-                                   "at --phases approach speeds (each starts the contact at another point of a time "
-                                   "step); report the largest and median error of the restitution against the "
-                                   "configured one. The design asks for at most 2 %: the cheapest step a scene can "
-                                   "take is the largest that passes in every row (docs/performance.md, \"The DEM's "
-                                   "time step\").")
+    p = add_command(sub, "restitution", cmd_restitution,
+                    help="measure a scene's two-sphere restitution at chosen DEM time steps")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--dt-safety", type=float, nargs="+", metavar="F",
                    help="time steps in units of the stable limit (default: the scene's configured one)")
@@ -310,18 +330,15 @@ def _add_restitution(sub) -> None:
                    help="largest relative error that passes (default 0.02, the design's 2 %%)")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     config_options(p)
-    p.set_defaults(func=cmd_restitution)
 
 
 def _add_physics(sub) -> None:
-    p = sub.add_parser("physics", help="check a scene's DEM data against published physics (table and plot)",
-                       description="The scene's own physics check on its sims, e.g. the column collapse's runout "
-                                   "against the aspect ratio beside the published laws (docs/collapse-scene.md).")
+    p = add_command(sub, "physics", cmd_physics,
+                    help="check a scene's DEM data against published physics (table and plot)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--data", type=Path, nargs="+", required=True, help="the scene's H5MD sims")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
     p.add_argument("--plot", type=Path, required=True, help="PNG to write")
-    p.set_defaults(func=cmd_physics)
 
 
 def _engine_flags() -> str:
@@ -330,12 +347,8 @@ def _engine_flags() -> str:
 
 
 def _add_crosscheck(sub) -> None:
-    p = sub.add_parser("crosscheck", help="compare a scene's metrics over the same sims run in each engine",
-                       description="One row per scene metric and pair of engines (its value at each sim's last "
-                                   "frame): both engines' mean and standard deviation over the sims, their relative "
-                                   "difference and pass/fail against the larger of --tolerance and the combined "
-                                   "standard error (docs/crosscheck.md). With --combine, stack finished tables "
-                                   "instead.")
+    p = add_command(sub, "crosscheck", cmd_crosscheck,
+                    help="compare a scene's metrics over the same sims run in each engine")
     p.add_argument("--scene", choices=scenes.names(),
                    help=f"the scene (with {' and '.join('--' + e for e in engines.NAMES)})")
     for name in engines.NAMES:
@@ -347,45 +360,31 @@ def _add_crosscheck(sub) -> None:
     p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
     p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
-    p.set_defaults(func=cmd_crosscheck)
 
 
 def _add_transfer(sub) -> None:
-    p = sub.add_parser("transfer", help="a model's rollout MSE on its own engine's test sims beside the other's",
-                       description="Stack two `graphdem evaluate` tables of one checkpoint: on the test sims of the "
-                                   "engine it was trained on (--same) and on the same rows run in the other engine "
-                                   "(--other).")
+    p = add_command(sub, "transfer", cmd_transfer,
+                    help="a model's rollout MSE on its own engine's test sims beside the other's")
     p.add_argument("--same", type=Path, required=True, help="metrics.csv on the training engine's test sims")
     p.add_argument("--other", type=Path, required=True, help="metrics.csv on the other engine's test sims")
     p.add_argument("--trained-on", choices=engines.names(), required=True)
     p.add_argument("--other-engine", choices=engines.names(), required=True)
     p.add_argument("--out", type=Path, required=True, help="CSV to write")
-    p.set_defaults(func=cmd_transfer)
 
 
 def _add_import_solidgn(sub) -> None:
-    p = sub.add_parser("import-solidgn", help="convert a Solid-GN dataset folder (pickles) to H5MD",
-                       description="Convert SRC (metadata.json and train/, valid/, test/ of Solid-GN .pkl "
-                                   "trajectories) into DEST/sims/<split>_<n>.h5 and DEST/splits.csv. Pickles are "
-                                   "read with an unpickler that admits numpy arrays and nothing else.")
+    p = add_command(sub, "import-solidgn", cmd_import_solidgn,
+                    help="convert a Solid-GN dataset folder (pickles) to H5MD")
     p.add_argument("src", type=Path)
     p.add_argument("dest", type=Path)
     p.add_argument("--limit", action="append", metavar="SPLIT=N",
                    help="import only the first N trajectories of SPLIT (train, valid or test; repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.set_defaults(func=cmd_import_solidgn)
 
 
 def _add_export(sub) -> None:
-    p = sub.add_parser("export", help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)",
-                       description="Write TRAJECTORY (an H5MD sim or Graph-DEM rollout) as the ParaView time "
-                                   "series --out NAME.pvd: one .vtu per exported frame in the folder NAME/ beside "
-                                   "it, each frame's time in the .pvd. Point data: id, type (species), radius (m), "
-                                   "mass (kg), kinematic (0/1), velocity (m/s; backward difference of the recorded "
-                                   "frames, the first frame takes the forward one), every per-particle property by "
-                                   "name, and with --truth the rollout error: error (m, distance to the truth's "
-                                   "position) and error_radii (in the particle's radii). 2D gets z = 0. Written "
-                                   "atomically: the .pvd appears last. Open NAME.pvd in ParaView (docs/export.md).")
+    p = add_command(sub, "export", cmd_export,
+                    help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)")
     p.add_argument("trajectory", type=Path, metavar="TRAJECTORY", help="H5MD file to export (a sim or a rollout)")
     p.add_argument("--out", type=Path, required=True, metavar="NAME.pvd",
                    help="the .pvd to write; its frames go to the folder of the same name without .pvd")
@@ -393,13 +392,11 @@ def _add_export(sub) -> None:
                    help="the DEM sim a rollout was made from (same particles and frame times): adds the error")
     p.add_argument("--every", type=positive_int, default=1, metavar="K",
                    help="export every K-th recorded frame from the first (default 1: all)")
-    p.set_defaults(func=cmd_export)
 
 
 def _add_inspect(sub) -> None:
-    p = sub.add_parser("inspect", help="validate H5MD files and print a summary")
+    p = add_command(sub, "inspect", cmd_inspect, help="validate H5MD files and print a summary")
     p.add_argument("files", nargs="+", type=Path)
-    p.set_defaults(func=cmd_inspect)
 
 
 #: the generators' registrars, in the order `graphdem --help` lists their subcommands (graphdem/cli.py adds the

@@ -2,6 +2,7 @@
 the console script and ``python -m graphdem`` (how torchrun starts the train stage) are the same command."""
 
 import argparse
+import inspect
 import re
 import subprocess
 import sys
@@ -97,3 +98,15 @@ def test_scene_options_take_scenes_only_and_a_public_benchmark_is_a_benchmark_op
         for argv in (["--scene", "slide_samer"], ["--scene", "slide", "--benchmark", "slide_samer"]):
             with pytest.raises(SystemExit):
                 parser.parse_args([*argv, *others])
+
+
+def test_every_subcommand_is_described_by_its_run_functions_docstring():
+    """`graphdem X --help` shows the docstring of the function X runs: one text, no second copy in code."""
+    sub = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, parser in sub.choices.items():
+        run = parser.get_default("func")
+        assert callable(run), name
+        if name in ("card", "tables"):      # a multi-paragraph text of their own (RawDescriptionHelpFormatter)
+            continue
+        assert parser.description == inspect.getdoc(run), name
+    assert "stable limit" in sub.choices["stability-dem"].format_help()

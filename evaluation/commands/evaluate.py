@@ -7,18 +7,13 @@ import json
 from pathlib import Path
 
 from evaluation.commands import metric_options
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("evaluate", help="rollout MSE and scene metrics of a checkpoint on H5MD sims",
-                       description="Evaluate a checkpoint on every H5MD sim in --data (all of them as test): "
-                                   "rollout MSE per sim and overall, and the scene's metrics (docs/surrogate.md) "
-                                   "where the scene is known, beside a constant-velocity baseline and, with "
-                                   "--ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of "
-                                   "the test-set mean curve (acc_percent), beside the pooled one "
-                                   "(acc_pooled_percent). The sims are --data, or one split of a --splits table. "
-                                   "Several --checkpoint: their ensemble is scored as Graph-DEM.")
+    p = gcli.add_command(sub, "evaluate", run_evaluate,
+                         help="rollout MSE and scene metrics of a checkpoint on H5MD sims")
     options.checkpoint_and_data(p, data_required=False, ensemble=True)
     p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
@@ -45,16 +40,20 @@ def register(sub) -> None:
     p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
     p.add_argument("--animate", help="sim id to animate (default: the first)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.set_defaults(func=run_evaluate)
 
-    p = sub.add_parser("combine", help="stack CSV tables of the same columns (e.g. one per protocol)")
+    p = gcli.add_command(sub, "combine", run_combine,
+                         help="stack CSV tables of the same columns (e.g. one per protocol)")
     p.add_argument("--tables", type=Path, nargs="+", required=True)
     p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
     p.add_argument("--out", type=Path, required=True)
-    p.set_defaults(func=run_combine)
 
 
 def run_evaluate(args) -> None:
+    """Evaluate a checkpoint on every H5MD sim in --data (all of them as test): rollout MSE per sim and overall, and
+    the scene's metrics (docs/surrogate.md) where the scene is known, beside a constant-velocity baseline and, with
+    --ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of the test-set mean curve
+    (acc_percent), beside the pooled one (acc_pooled_percent). The sims are --data, or one split of a --splits
+    table. Several --checkpoint: their ensemble is scored as Graph-DEM."""
     from evaluation import evaluate
     options.log_to_stderr()
     split, data, note = _split(args)

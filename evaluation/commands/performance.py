@@ -7,16 +7,14 @@ import json
 from pathlib import Path
 
 from evaluation.commands import metric_options
+from generators import cli as gcli
 from generators import scenes
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("performance-dem", help="time and score one DEM contender (time step, stiffness, cores)",
-                       description="Rerun the DEM on the sims of --sims (their settled packings) with the changes "
-                                   "of --variant (dt_safety, dt_factor, stiffness_factor, ranks, threads), --repeats "
-                                   "times each; time the recorded window (the engine's own loop time; run-up and "
-                                   "start-up in their own columns) and score against --truth. One CSV row.")
+    p = gcli.add_command(sub, "performance-dem", run_dem,
+                         help="time and score one DEM contender (time step, stiffness, cores)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--name", required=True, help="the contender's name")
     p.add_argument("--variant", type=options.json_arg, required=True,
@@ -28,22 +26,17 @@ def register(sub) -> None:
     p.add_argument("--repeats", type=int, required=True)
     metric_options.scene_metric_options(p)
     p.add_argument("--out", type=Path, required=True)
-    p.set_defaults(func=run_dem)
 
-    p = sub.add_parser("performance-surrogate", help="time and score one surrogate contender",
-                       description="Roll the checkpoint out on --data with the runtime switches of --runtime-json "
-                                   "changed by --variant (and, with latent/hidden/message_passing in it, an "
-                                   "untrained model of that size, timed only): one warm-up, then the median of "
-                                   "--repeats. One CSV row.")
+    p = gcli.add_command(sub, "performance-surrogate", run_surrogate, help="time and score one surrogate contender")
     options.checkpoint_and_data(p)
     p.add_argument("--name", required=True, help="the contender's name")
     p.add_argument("--variant", type=options.json_arg, required=True, help='changes, e.g. {"precision": "bfloat16"}')
     p.add_argument("--repeats", type=int, required=True)
     metric_options.scene_metric_options(p)
     p.add_argument("--out", type=Path, required=True)
-    p.set_defaults(func=run_surrogate)
 
-    p = sub.add_parser("performance-report", help="performance.csv and the Pareto plot from the contenders' rows")
+    p = gcli.add_command(sub, "performance-report", run_report,
+                         help="performance.csv and the Pareto plot from the contenders' rows")
     p.add_argument("--tables", type=Path, nargs="+", required=True, help="one CSV per contender")
     p.add_argument("--main", required=True, help="the surrogate contender of the headline figures")
     p.add_argument("--reference", required=True, help="the DEM reference contender")
@@ -52,10 +45,12 @@ def register(sub) -> None:
     p.add_argument("--plot", type=Path, required=True)
     p.add_argument("--substeps-plot", type=Path, help="the speed-up against DEM sub-steps per frame (PNG)")
     p.add_argument("--title", default="run time against error")
-    p.set_defaults(func=run_report)
 
 
 def run_dem(args) -> None:
+    """Rerun the DEM on the sims of --sims (their settled packings) with the changes of --variant (dt_safety,
+    dt_factor, stiffness_factor, ranks, threads), --repeats times each; time the recorded window (the engine's own
+    loop time; run-up and start-up in their own columns) and score against --truth. One CSV row."""
     from evaluation import performance
     rows = args.sims
     packings = [Path(args.packings) / row["packing"] for row in rows]
@@ -66,6 +61,9 @@ def run_dem(args) -> None:
 
 
 def run_surrogate(args) -> None:
+    """Roll the checkpoint out on --data with the runtime switches of --runtime-json changed by --variant (and, with
+    latent/hidden/message_passing in it, an untrained model of that size, timed only): one warm-up, then the median
+    of --repeats. One CSV row."""
     from evaluation import performance
     result = performance.surrogate_contender(args.name, args.variant, args.checkpoint,
                                              options.runtime_config(args, required_by="performance-surrogate"),

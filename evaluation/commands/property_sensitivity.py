@@ -5,15 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("property-sensitivity", help="the property-sensitivity test (article Fig. 14) of a checkpoint",
-                       description="For each test sim, two DEM reruns that differ only in one node property (low, "
-                                   "high) and the checkpoint's rollouts of both: the change of the moving particles' "
-                                   "mean x at the last frame, DEM against Graph-DEM, same sign and ratio, beside the "
-                                   "DEM's own chaos (docs/surrogate.md, Property sensitivity).")
+    p = gcli.add_command(sub, "property-sensitivity", run,
+                         help="the property-sensitivity test (article Fig. 14) of a checkpoint")
     p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
     p.add_argument("--runs", type=Path, nargs=2, required=True, metavar=("LOW", "HIGH"),
                    help="the low and the high value's run folders, each with sims/<id>.h5 and rollouts/<id>.h5")
@@ -28,10 +26,12 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="CSV: one row per sim, then 'all'")
     p.add_argument("--plot", type=Path, help="PNG: Fig. 14's overlay of the first sim and the changes per sim")
     p.add_argument("--title", help="the plot's title")
-    p.set_defaults(func=run)
 
 
 def run(args) -> None:
+    """For each test sim, two DEM reruns that differ only in one node property (low, high) and the checkpoint's
+    rollouts of both: the change of the moving particles' mean x at the last frame, DEM against Graph-DEM, same sign
+    and ratio, beside the DEM's own chaos (docs/surrogate.md, Property sensitivity)."""
     from evaluation import plots, property_sensitivity
     from surrogate import provenance
     if (args.ensemble is None) != (args.sims_dir is None):

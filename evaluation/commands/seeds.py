@@ -5,22 +5,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("seeds", help="mean and spread of every metric over models trained with different seeds",
-                       description="Combine the metrics.csv of models trained with different seeds (the same data, "
-                                   "the same evaluation) into one table: per method, metric, protocol and value "
-                                   "column the mean, sample standard deviation, range and each seed's value "
-                                   "(docs/surrogate.md, Seeds).")
+    p = gcli.add_command(sub, "seeds", run,
+                         help="mean and spread of every metric over models trained with different seeds")
     p.add_argument("--metrics", type=Path, nargs="+", required=True, help="one metrics.csv per seed")
     p.add_argument("--seeds", type=int, nargs="+", required=True, help="the seed of each table, in the same order")
     p.add_argument("--out", type=Path, required=True)
-    p.set_defaults(func=run)
 
 
 def run(args) -> None:
+    """Combine the metrics.csv of models trained with different seeds (the same data, the same evaluation) into one
+    table: per method, metric, protocol and value column the mean, sample standard deviation, range and each seed's
+    value (docs/surrogate.md, Seeds)."""
     from evaluation import seeds
     table = seeds.spread(seeds.read(args.metrics, args.seeds))
     options.write_table(table, args.out)

@@ -6,14 +6,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("shear-stress-readout", help="train the shear-stress readout on a shear dataset's DEM frames",
-                       description="Fit the pair-force readout of the shear stress (evaluation/shear_stress.py; "
-                                   "docs/shear-scene.md) to the train split's shear_stress observable, keeping the "
-                                   "epoch with the lowest valid error of tau / sigma_n.")
+    p = gcli.add_command(sub, "shear-stress-readout", run_readout,
+                         help="train the shear-stress readout on a shear dataset's DEM frames")
     p.add_argument("--splits", type=Path, required=True, help="the dataset's splits.csv (train and valid sims)")
     p.add_argument("--settings-json", type=options.json_arg, required=True,
                    help="the scene's shear_stress_readout settings: cutoff, hidden, layers, epochs, lr, seed")
@@ -21,12 +20,9 @@ def register(sub) -> None:
     p.add_argument("--history", type=Path, required=True, help="CSV: train and valid MSE per epoch")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=run_readout)
 
-    p = sub.add_parser("shear-stress-check", help="the predicted against the DEM's peak shear stress of the test sims",
-                       description="Read the shear stress from the DEM's frames, Graph-DEM's rollouts and constant "
-                                   "velocity with the readout, beside the DEM's observable and its ensemble rerun's; "
-                                   "peak and curve errors per sim (evaluation/shear_stress_check.py).")
+    p = gcli.add_command(sub, "shear-stress-check", run_test,
+                         help="the predicted against the DEM's peak shear stress of the test sims")
     p.add_argument("--readout", type=Path, required=True, help="the readout (graphdem shear-stress-readout)")
     p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
     p.add_argument("--sims", type=Path, nargs="+", required=True, help="the test sims' H5MD files")
@@ -38,10 +34,11 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="CSV: one row per sim, then 'all'")
     p.add_argument("--plot", type=Path, help="PNG: the stress curves per sim")
     p.add_argument("--title", help="the plot's title")
-    p.set_defaults(func=run_test)
 
 
 def run_readout(args) -> None:
+    """Fit the pair-force readout of the shear stress (evaluation/shear_stress.py; docs/shear-scene.md) to the train
+    split's shear_stress observable, keeping the epoch with the lowest valid error of tau / sigma_n."""
     import pandas as pd
 
     from evaluation import shear_stress
@@ -60,6 +57,9 @@ def run_readout(args) -> None:
 
 
 def run_test(args) -> None:
+    """Read the shear stress from the DEM's frames, Graph-DEM's rollouts and constant velocity with the readout, beside
+    the DEM's observable and its ensemble rerun's; peak and curve errors per sim (evaluation/shear_stress_check.py).
+    """
     from evaluation import plots, shear_stress_check
     from surrogate import provenance
     table, curves = shear_stress_check.run(args.readout, args.sims, args.rollouts, provenance.digest(args.checkpoint),

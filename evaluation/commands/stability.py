@@ -5,17 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("stability-surrogate", help="long and perturbed rollouts, and precision, of a checkpoint",
-                       description="Stability test of the surrogate on H5MD sims: rollouts --lengths times the "
-                                   "recorded window from a history with random-walk noise (non-finite frames, "
-                                   "escapes or particles put back into the box, the overlap distribution and "
-                                   "kinetic energy per frame, the first frame outside the physical envelope, error "
-                                   "growth per step, final speed), and the recorded rollout in float64, float32 and "
-                                   "bfloat16 (differences from float64).")
+    p = gcli.add_command(sub, "stability-surrogate", run,
+                         help="long and perturbed rollouts, and precision, of a checkpoint")
     options.checkpoint_and_data(p)
     p.add_argument("--lengths", type=int, nargs="+", required=True, help="rollout lengths in recorded windows")
     p.add_argument("--noise", type=float, required=True, help="std (m per frame) of the initial history's noise")
@@ -28,10 +24,13 @@ def register(sub) -> None:
     p.add_argument("--frames-out", type=Path, help="CSV: per frame of each long rollout (energy, overlaps, outside)")
     p.add_argument("--plot", type=Path, help="PNG: kinetic energy and overlaps per frame of the long rollouts")
     p.add_argument("--title", help="the plot's title")
-    p.set_defaults(func=run)
 
 
 def run(args) -> None:
+    """Stability test of the surrogate on H5MD sims: rollouts --lengths times the recorded window from a history with
+    random-walk noise (non-finite frames, escapes or particles put back into the box, the overlap distribution and
+    kinetic energy per frame, the first frame outside the physical envelope, error growth per step, final speed),
+    and the recorded rollout in float64, float32 and bfloat16 (differences from float64)."""
     import torch
 
     from evaluation import stability

@@ -6,14 +6,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("dataset", help="write splits.csv and stats.json (train split only)",
-                       description="Split table and normalisation statistics of the train split. --table is a "
-                                   "scene's sweep.csv (id, split; the files are --sims/<id>.h5) or a split table "
-                                   "with a path column, such as the one import-solidgn writes.")
+    p = gcli.add_command(sub, "dataset", run_dataset, help="write splits.csv and stats.json (train split only)")
     options.scene_or_benchmark(p, True, "the sims are of (the plot's title)")
     p.add_argument("--table", type=Path, required=True, help="sweep.csv or a split table (id, split[, path])")
     p.add_argument("--sims", type=Path, help="folder of <id>.h5 files, for a table without a path column")
@@ -23,14 +21,9 @@ def register(sub) -> None:
                    help="a neighbour cap (the model's max_neighbours): stats.json reports the share of receivers "
                         "it truncates and of edges it drops on the train split; default: no cap")
     p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
-    p.set_defaults(func=run_dataset)
 
-    p = sub.add_parser("contacts", help="next-frame contacts a graph of radius R, capped or not, would miss",
-                       description="For each R and neighbour cap N: the share of next-frame contacts (a moving "
-                                   "receiver, a sender touching it one frame later) whose sender is R or farther "
-                                   "away, or not among the receiver's N nearest, in the frame the graph is built "
-                                   "on; and the senders per receiver the graph keeps. The contact-miss rate that "
-                                   "chooses R and max_neighbours (docs/surrogate.md, Neighbour cap).")
+    p = gcli.add_command(sub, "contacts", run_contacts,
+                         help="next-frame contacts a graph of radius R, capped or not, would miss")
     p.add_argument("--splits", type=Path, required=True, help="a dataset's splits.csv (id, split, path)")
     p.add_argument("--split", default="train", help="the split to count (default: train)")
     p.add_argument("--radius", type=float, nargs="+", required=True, metavar="R", help="connectivity radii (m)")
@@ -38,10 +31,11 @@ def register(sub) -> None:
                    help="neighbour caps (senders per receiver, at most 64); no cap is always a row")
     p.add_argument("--sims", type=int, help="only the split's first N sims")
     p.add_argument("--out", type=Path, help="also write the table as CSV")
-    p.set_defaults(func=run_contacts)
 
 
 def run_dataset(args) -> None:
+    """Split table and normalisation statistics of the train split. --table is a scene's sweep.csv (id, split; the
+    files are --sims/<id>.h5) or a split table with a path column, such as the one import-solidgn writes."""
     import pandas as pd
 
     from surrogate import dataset
@@ -100,6 +94,10 @@ def _plot_first_train_sim(args) -> None:
 
 
 def run_contacts(args) -> None:
+    """For each R and neighbour cap N: the share of next-frame contacts (a moving receiver, a sender touching it one
+    frame later) whose sender is R or farther away, or not among the receiver's N nearest, in the frame the graph is
+    built on; and the senders per receiver the graph keeps. The contact-miss rate that chooses R and max_neighbours
+    (docs/surrogate.md, Neighbour cap)."""
     import pandas as pd
 
     from generators import h5md

@@ -5,21 +5,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from generators import cli as gcli
 from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("rollout", help="predict every frame after the first K of each sim; write H5MD",
-                       description="Roll the checkpoint's model out on H5MD sims: the first K frames come "
-                                   "from the data, every later frame is predicted; kinematic particles follow "
-                                   "the data. Writes <out-dir>/<sim>.h5 in the sims' layout. Several "
-                                   "--checkpoint: their ensemble (the mean acceleration of the models).")
+    p = gcli.add_command(sub, "rollout", run, help="predict every frame after the first K of each sim; write H5MD")
     options.checkpoint_and_data(p, ensemble=True)
     p.add_argument("--out-dir", type=Path, required=True)
-    p.set_defaults(func=run)
 
 
 def run(args) -> None:
+    """Roll the checkpoint's model out on H5MD sims: the first K frames come from the data, every later frame is
+    predicted; kinematic particles follow the data. Writes <out-dir>/<sim>.h5 in the sims' layout. Several
+    --checkpoint: their ensemble (the mean acceleration of the models)."""
     import torch
 
     from surrogate import ensemble, provenance, rollout

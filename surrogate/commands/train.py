@@ -12,16 +12,9 @@ from surrogate.commands import options
 
 
 def register(sub) -> None:
-    p = sub.add_parser("train", help="train Graph-DEM (resumes an interrupted run in the same folder)",
-                       description="Train the Graph-DEM surrogate on the train split and keep the checkpoint "
-                                   "with the lowest validation rollout MSE. Writes best.pt, last.pt (full state, "
-                                   "used to resume) and history.csv into --out-dir. The model and training "
-                                   "settings are the section of the --scene or --benchmark in the workflow's "
-                                   "config: the package defaults, --config files and --set keys, e.g. graphdem "
-                                   "train --scene slide --set scale=ci --set slide.train.lr=1e-3 (graphdem config "
-                                   "prints the result).",
-                       epilog="Paths default to the workflow's: results/<name>/dataset/{stats.json,splits.csv} "
-                              "and results/<name>/model/, <name> the scene or public benchmark.")
+    p = gcli.add_command(sub, "train", run, help="train Graph-DEM (resumes an interrupted run in the same folder)",
+                         epilog="Paths default to the workflow's: results/<name>/dataset/{stats.json,splits.csv} "
+                                "and results/<name>/model/, <name> the scene or public benchmark.")
     options.scene_or_benchmark(p, False, "whose model and train sections to use")
     gcli.config_options(p)
     p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<name>/dataset/stats.json)")
@@ -36,10 +29,14 @@ def register(sub) -> None:
     p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
     p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.set_defaults(func=run)
 
 
 def run(args) -> None:
+    """Train the Graph-DEM surrogate on the train split and keep the checkpoint with the lowest validation rollout
+    MSE. Writes best.pt, last.pt (full state, used to resume) and history.csv into --out-dir. The model and training
+    settings are the section of the --scene or --benchmark in the workflow's config: the package defaults, --config
+    files and --set keys, e.g. graphdem train --scene slide --set scale=ci --set slide.train.lr=1e-3 (graphdem config
+    prints the result)."""
     from surrogate import distributed, train
     model, train_cfg, device, stats, splits, out_dir = sections(args)
     main = distributed.World.from_env().main
