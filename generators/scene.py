@@ -43,7 +43,8 @@ SURROGATE_KEYS = ("model", "train", "runtime", "evaluate", "performance", "stabi
 # Keys of a scene section that never enter a sweep row: sweep and sizes, surrogate settings, how an engine
 # runs, and the settling of the packing (which only the packing key carries).
 NOT_IN_ROWS = frozenset({"seed", "split", "sweep", "n_sims", "n_packings", "connectivity_radius", "settle_time",
-                         "settle_damping", "settle_speed", "scales", *SURROGATE_KEYS, *EXECUTION_KEYS})
+                         "settle_damping", "settle_speed", "settle_check", "scales", *SURROGATE_KEYS,
+                         *EXECUTION_KEYS})
 # Keys no settled packing depends on (the sweep, sizes, surrogate settings and how an engine runs).
 NOT_IN_PACKINGS = frozenset({"split", "sweep", "n_sims", "n_packings", "connectivity_radius", "scales",
                              *SURROGATE_KEYS, *EXECUTION_KEYS})
@@ -149,9 +150,11 @@ class Scene(ABC):
             schedule=schedule(dt), **extra)
 
     @staticmethod
-    def settling(p: dict, damping_kind: str, check_every: float):
-        """The schedule factory (dt -> Settle) of the section's settle_damping, settle_time and settle_speed."""
-        return lambda dt: dem.Settle(damping=p["settle_damping"], damping_kind=damping_kind, check_every=check_every,
+    def settling(p: dict, damping_kind: str):
+        """The schedule factory (dt -> Settle) of the section's settle_damping, settle_time, settle_speed and
+        settle_check."""
+        return lambda dt: dem.Settle(damping=p["settle_damping"], damping_kind=damping_kind,
+                                     check_every=p["settle_check"],
                                      max_time=p["settle_time"], speed=p["settle_speed"])
 
     # ---- data ----------------------------------------------------------------------------------

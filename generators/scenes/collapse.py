@@ -30,7 +30,6 @@ if TYPE_CHECKING:  # pandas is imported where a table is built, not when the wor
     import pandas as pd
 
 FLOOR, GRAIN = 0, 1
-SETTLE_CHECK = 0.02       # s of physical time between two checks of the settling speed
 FILL = 1.14               # the loose lattice fills this many nominal heights (it compacts by about 12 %)
 REST_TIME = 3.0           # the collapse stops after about 3 sqrt(H0 / g) (Lube et al. 2005)
 SPREAD = 5.0              # the domain (closed by an end wall) holds a runout of SPREAD a^(2/3) L0
@@ -189,7 +188,7 @@ class Collapse(Scene):
         particles = floor_particles(params, upper[0]).concat(loose_column(params, params["aspect"], seed))
         name = f"collapse column a = {params['aspect']:g}"
         return self.setup(params, name, particles, contact.time_step(params, name, self.dim), (np.zeros(2), upper),
-                          self.settling(params, "viscous", SETTLE_CHECK),
+                          self.settling(params, "viscous"),
                           walls=(dem.PlanarWall(0, 0.0, width),))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:

@@ -24,7 +24,6 @@ from generators.errors import ConfigError
 from generators.scene import Scene, check_range, lattice_count, lattice_spacing
 
 GROUND, METEORITE = 0, 1
-SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
 
 
 def loose_bed(cfg: dict, seed) -> dem.Particles:
@@ -263,7 +262,7 @@ class Meteorite(Scene):
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_bed(params, seed=[params["seed"], 2000 + params["packing_index"]])
         return self.setup(params, "meteorite", loose, contact.time_step(params, "meteorite", self.dim), _bounds(params),
-                          self.settling(params, "viscous", SETTLE_CHECK), walls=_walls(params))
+                          self.settling(params, "viscous"), walls=_walls(params))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         particles, velocity = place_meteorite(row, packing)

@@ -44,7 +44,6 @@ PLATEN_CLEARANCE = 0.5     # wall radii between the platen's outer spheres and t
 FORCE_SAMPLES = 10        # the forces of a frame: the mean of 10 equally spaced steps of its interval
 OBSERVABLES = ("shear_force", "shear_stress", "shear_displacement", "normal_stress", "normal_displacement")
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
-SETTLE_CHECK = 0.005       # s of physical time between two checks of the settling energy
 
 
 def split_height(cfg: dict) -> float:
@@ -309,7 +308,7 @@ class Shear(Scene):
         """The loose soil poured into the box (walls extended upwards)."""
         name = f"packing E = {params['young']:g} Pa"
         return self.setup(params, name, loose_packing(params), dem_step(params, name), domain(params, 0.0),
-                          self.settling(params, "viscous", SETTLE_CHECK))
+                          self.settling(params, "viscous"))
 
     def settled(self, params: dict, particles: dem.Particles, where: str) -> dem.Particles:
         """The settled pour, refused if under-filled, trimmed at the box height."""

@@ -18,7 +18,6 @@ from generators.scene import Scene, check_range, lattice_count, lattice_spacing
 
 BEDROCK, STABLE, WEAK = 0, 1, 2
 WEAK_REFERENCE_X = 40.0   # m, where the weak layer's base height is measured
-SETTLE_CHECK = 0.5        # s of physical time between two checks of the settling speed
 
 
 def polyline_y(points: list[list[float]], x: np.ndarray) -> np.ndarray:
@@ -208,7 +207,7 @@ class Slide(Scene):
     def settle_setup(self, params: dict) -> dem.Setup:
         loose = loose_packing(params, seed=[params["seed"], 1000 + params["packing_index"]])
         return self.setup(params, "slide", loose, contact.time_step(params, "slide", self.dim), _bounds(params),
-                          self.settling(params, "viscous", SETTLE_CHECK))
+                          self.settling(params, "viscous"))
 
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         """The trigger: the weak layer's species gets its lowered friction; frame 0 is recorded

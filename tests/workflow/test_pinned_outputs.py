@@ -18,7 +18,9 @@ The meteorite's Graph-DEM rows were re-pinned when it started drawing its traini
 was re-pinned when the yardstick changed (docs/surrogate.md, Evaluation): constant velocity runs under the model's
 runtime (clamp, contact correction), the DEM ensemble's members start at the last given frame, undefined values are
 left out alike on both sides, and every figure gained its change error, skill, spreads and intervals; the sweeps,
-packings and positions stayed as they were, bit for bit."""
+packings and positions stayed as they were, bit for bit. The packing keys were renamed when the settling's check
+interval became a config key (`settle_check`, read by the settling and so part of each packing's key): the same
+values as the constants before it, the same packings and positions bit for bit under new names."""
 
 import json
 import math
