@@ -20,18 +20,46 @@ def _ancestors(pid: int) -> set[int]:
     return seen
 
 
+def is_snakemake(argv: list[str]) -> bool:
+    """Whether a command line runs Snakemake, however it was started: its console script (alone or after an
+    interpreter and its options, ``python /venv/bin/snakemake``) or the module (``python -X dev -m snakemake``)."""
+    args = iter(argv)
+    for i, arg in enumerate(args):
+        if Path(arg).name == "snakemake":
+            return True
+        if arg == "-m":
+            return next(args, "").split(".")[0] == "snakemake"
+        if arg in ("-X", "-W"):           # an interpreter option with a value
+            next(args, None)
+        elif i > 0 and not arg.startswith("-"):
+            return False                  # the script the interpreter runs, and it is not Snakemake
+    return False
+
+
+def working_folders(argv: list[str], cwd: Path) -> set[Path]:
+    """The folders a Snakemake command line works in: its current folder and its ``-d``/``--directory`` (which
+    it changes into while it starts)."""
+    folders = {cwd}
+    for i, arg in enumerate(argv):
+        if arg in ("-d", "--directory") and i + 1 < len(argv):
+            folders.add((cwd / argv[i + 1]).resolve())
+        elif arg.startswith("--directory="):
+            folders.add((cwd / arg.partition("=")[2]).resolve())
+    return folders
+
+
 def other_snakemake_in(workdir: Path) -> list[int]:
-    """Pids of Snakemake processes other than this one (and its ancestors) whose working folder is ``workdir``."""
+    """Pids of Snakemake processes other than this one (and its ancestors) that work in ``workdir``."""
     workdir, mine, found = Path(workdir).resolve(), _ancestors(os.getpid()), []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit() or int(entry.name) in mine:
             continue
         try:
-            argv = (entry / "cmdline").read_bytes().split(b"\0")[:2]
+            argv = [a.decode(errors="replace") for a in (entry / "cmdline").read_bytes().split(b"\0") if a]
             cwd = (entry / "cwd").resolve()
         except OSError:
             continue
-        if any(Path(a.decode(errors="replace")).name == "snakemake" for a in argv) and cwd == workdir:
+        if is_snakemake(argv) and workdir in working_folders(argv, cwd):
             found.append(int(entry.name))
     return found
 
