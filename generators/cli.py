@@ -17,6 +17,7 @@ from pathlib import Path
 
 from generators import config as gconfig
 from generators import engines, scenes
+from generators.cli_paths import input_path, output_file, output_series, replaced_folder, run_folder
 
 
 def add_command(sub, name: str, run: Callable[[argparse.Namespace], None], help: str,
@@ -38,7 +39,7 @@ def json_arg(text: str) -> dict:
 
 def config_options(p: argparse.ArgumentParser) -> None:
     """``--config FILE`` and ``--set KEY=VALUE``: the workflow's config keys, on top of the package defaults."""
-    p.add_argument("--config", dest="config_file", type=Path, metavar="FILE", action="append",
+    p.add_argument("--config", dest="config_file", type=input_path, metavar="FILE", action="append",
                    help="YAML file of config keys, as Snakemake's --configfile takes them (repeatable; later "
                         "files win)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
@@ -279,7 +280,7 @@ def _add_sweep(sub) -> None:
     p = add_command(sub, "sweep", cmd_sweep, help="write the sweep table (one row per simulation)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--config-json", type=json_arg, required=True, help="the scene's resolved config section")
-    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.add_argument("--out", type=output_file, required=True, help="CSV to write")
 
 
 def _add_prepare(sub) -> None:
@@ -287,7 +288,7 @@ def _add_prepare(sub) -> None:
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--engine", choices=engines.names(), required=True, help="the engine that settles it")
     p.add_argument("--params", type=json_arg, required=True, help="packing parameters (JSON)")
-    p.add_argument("--out", type=Path, required=True, help="packing folder to write")
+    p.add_argument("--out", type=run_folder, required=True, help="packing folder to write")
     _ranks_option(p)
 
 
@@ -295,16 +296,16 @@ def _add_simulate(sub) -> None:
     p = add_command(sub, "simulate", cmd_simulate, help="run one simulation of the sweep with the DEM engine")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="the sim's sweep row (JSON)")
-    p.add_argument("--packing", type=Path, required=True, help="settled packing folder")
-    p.add_argument("--out", type=Path, required=True, help="raw output folder to write")
+    p.add_argument("--packing", type=input_path, required=True, help="settled packing folder")
+    p.add_argument("--out", type=run_folder, required=True, help="raw output folder to write")
     _ranks_option(p)
 
 
 def _add_convert(sub) -> None:
     p = add_command(sub, "convert", cmd_convert, help="convert a raw engine output folder to H5MD")
-    p.add_argument("--raw", type=Path, required=True,
+    p.add_argument("--raw", type=input_path, required=True,
                    help="a simulate stage's raw folder (its run.json names the scene and the engine)")
-    p.add_argument("--out", type=Path, required=True, help="H5MD file to write")
+    p.add_argument("--out", type=output_file, required=True, help="H5MD file to write")
 
 
 def _add_stability_dem(sub) -> None:
@@ -312,9 +313,9 @@ def _add_stability_dem(sub) -> None:
                     help="run one sim at multiples of the stable DEM time step; report blow-ups")
     p.add_argument("--scene", choices=scenes.names(), required=True)
     p.add_argument("--sim", type=json_arg, required=True, help="one row of the sweep table (JSON)")
-    p.add_argument("--packing", type=Path, required=True, help="the sim's settled packing (prepare stage)")
+    p.add_argument("--packing", type=input_path, required=True, help="the sim's settled packing (prepare stage)")
     p.add_argument("--factors", type=float, nargs="+", required=True, help="time steps in units of the stable limit")
-    p.add_argument("--out", type=Path, required=True, help="CSV report")
+    p.add_argument("--out", type=output_file, required=True, help="CSV report")
 
 
 def _add_restitution(sub) -> None:
@@ -328,7 +329,7 @@ def _add_restitution(sub) -> None:
     p.add_argument("--phases", type=positive_int, default=13, metavar="N", help="impact phases per step (default 13)")
     p.add_argument("--tolerance", type=float, default=0.02,
                    help="largest relative error that passes (default 0.02, the design's 2 %%)")
-    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.add_argument("--out", type=output_file, required=True, help="CSV to write")
     config_options(p)
 
 
@@ -336,9 +337,9 @@ def _add_physics(sub) -> None:
     p = add_command(sub, "physics", cmd_physics,
                     help="check a scene's DEM data against published physics (table and plot)")
     p.add_argument("--scene", choices=scenes.names(), required=True)
-    p.add_argument("--data", type=Path, nargs="+", required=True, help="the scene's H5MD sims")
-    p.add_argument("--out", type=Path, required=True, help="CSV to write")
-    p.add_argument("--plot", type=Path, required=True, help="PNG to write")
+    p.add_argument("--data", type=input_path, nargs="+", required=True, help="the scene's H5MD sims")
+    p.add_argument("--out", type=output_file, required=True, help="CSV to write")
+    p.add_argument("--plot", type=output_file, required=True, help="PNG to write")
 
 
 def _engine_flags() -> str:
@@ -352,31 +353,31 @@ def _add_crosscheck(sub) -> None:
     p.add_argument("--scene", choices=scenes.names(),
                    help=f"the scene (with {' and '.join('--' + e for e in engines.NAMES)})")
     for name in engines.NAMES:
-        p.add_argument(f"--{name}", type=Path, nargs="+", help=f"the sims run in {name.upper()} (H5MD)")
-    p.add_argument("--chaos", type=Path, nargs="+",
+        p.add_argument(f"--{name}", type=input_path, nargs="+", help=f"the sims run in {name.upper()} (H5MD)")
+    p.add_argument("--chaos", type=input_path, nargs="+",
                    help="the same sims rerun by one of the engines from perturbed packings (the DEM's own chaos)")
     p.add_argument("--tolerance", type=float, default=gconfig.defaults()["crosscheck"]["tolerance"],
                    help="relative tolerance on each metric's mean (default: the config's crosscheck.tolerance)")
     p.add_argument("--body-displacement", type=float, help="slide body threshold (m); default one mean diameter")
-    p.add_argument("--combine", type=Path, nargs="+", help="cross-check tables to stack (all scenes)")
-    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.add_argument("--combine", type=input_path, nargs="+", help="cross-check tables to stack (all scenes)")
+    p.add_argument("--out", type=output_file, required=True, help="CSV to write")
 
 
 def _add_transfer(sub) -> None:
     p = add_command(sub, "transfer", cmd_transfer,
                     help="a model's rollout MSE on its own engine's test sims beside the other's")
-    p.add_argument("--same", type=Path, required=True, help="metrics.csv on the training engine's test sims")
-    p.add_argument("--other", type=Path, required=True, help="metrics.csv on the other engine's test sims")
+    p.add_argument("--same", type=input_path, required=True, help="metrics.csv on the training engine's test sims")
+    p.add_argument("--other", type=input_path, required=True, help="metrics.csv on the other engine's test sims")
     p.add_argument("--trained-on", choices=engines.names(), required=True)
     p.add_argument("--other-engine", choices=engines.names(), required=True)
-    p.add_argument("--out", type=Path, required=True, help="CSV to write")
+    p.add_argument("--out", type=output_file, required=True, help="CSV to write")
 
 
 def _add_import_solidgn(sub) -> None:
     p = add_command(sub, "import-solidgn", cmd_import_solidgn,
                     help="convert a Solid-GN dataset folder (pickles) to H5MD")
-    p.add_argument("src", type=Path)
-    p.add_argument("dest", type=Path)
+    p.add_argument("src", type=input_path, help="the Solid-GN dataset folder")
+    p.add_argument("dest", type=replaced_folder("splits.csv"), help="the folder to write (replaced whole)")
     p.add_argument("--limit", action="append", metavar="SPLIT=N",
                    help="import only the first N trajectories of SPLIT (train, valid or test; repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -385,10 +386,10 @@ def _add_import_solidgn(sub) -> None:
 def _add_export(sub) -> None:
     p = add_command(sub, "export", cmd_export,
                     help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)")
-    p.add_argument("trajectory", type=Path, metavar="TRAJECTORY", help="H5MD file to export (a sim or a rollout)")
-    p.add_argument("--out", type=Path, required=True, metavar="NAME.pvd",
+    p.add_argument("trajectory", type=input_path, metavar="TRAJECTORY", help="H5MD file to export (a sim or a rollout)")
+    p.add_argument("--out", type=output_series, required=True, metavar="NAME.pvd",
                    help="the .pvd to write; its frames go to the folder of the same name without .pvd")
-    p.add_argument("--truth", type=Path, metavar="DEM.h5",
+    p.add_argument("--truth", type=input_path, metavar="DEM.h5",
                    help="the DEM sim a rollout was made from (same particles and frame times): adds the error")
     p.add_argument("--every", type=positive_int, default=1, metavar="K",
                    help="export every K-th recorded frame from the first (default 1: all)")
@@ -396,7 +397,7 @@ def _add_export(sub) -> None:
 
 def _add_inspect(sub) -> None:
     p = add_command(sub, "inspect", cmd_inspect, help="validate H5MD files and print a summary")
-    p.add_argument("files", nargs="+", type=Path)
+    p.add_argument("files", nargs="+", type=input_path)
 
 
 #: the generators' registrars, in the order `graphdem --help` lists their subcommands (graphdem/cli.py adds the
@@ -411,31 +412,6 @@ def add_commands(sub) -> None:
     """Add the generators' subcommands to the `graphdem` subparsers ``sub``."""
     for register in REGISTRARS:
         register(sub)
-
-
-#: the argparse destinations a subcommand writes (files, or folders it writes files into); every other path is read
-OUTPUTS = ("out", "out_dir", "per_step", "plot", "plots", "dest", "markdown")
-DIRECTORY_OUTPUTS = ("out_dir", "plots", "dest")
-
-
-def _paths(value) -> list[Path]:
-    items = value if isinstance(value, list | tuple) else [value]
-    return [Path(v) for v in items if isinstance(v, Path)]
-
-
-def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse a command whose output is one of its inputs, or a folder it writes into that directly holds one
-    (compared as resolved paths), before anything is read or written."""
-    outputs = {k: _paths(v)[0] for k, v in vars(args).items() if k in OUTPUTS and _paths(v)}
-    inputs = {(k, p.resolve()): p for k, v in vars(args).items() if k not in OUTPUTS for p in _paths(v)}
-    for out_key, out in outputs.items():
-        target = out.resolve()
-        for (in_key, resolved), given in inputs.items():
-            inside = out_key in DIRECTORY_OUTPUTS and resolved.parent == target
-            if resolved == target or inside:
-                flag, src = "--" + out_key.replace("_", "-"), "--" + in_key.replace("_", "-")
-                raise SystemExit(f"graphdem {args.command}: {flag} {out} would overwrite the input {src} {given}"
-                                 f"{' (a file in that folder)' if inside else ''}; write the output elsewhere")
 
 
 def errors() -> tuple[type[Exception], ...]:

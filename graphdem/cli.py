@@ -7,7 +7,8 @@ contacts, train, rollout), the evaluation's in evaluation/commands/ (evaluate, c
 property-sensitivity, shear-stress-readout, shear-stress-check, stability-surrogate, the performance stage's) and
 evaluation/doc_tables/ (tables: the docs' results tables).
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the file, sim,
-frame or config key) when something is wrong.
+frame or config key) when something is wrong. Before it runs, the paths it writes are checked against the paths it
+reads, as every path option declares them where it is added (generators/cli_paths.py).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from evaluation.commands import (
     stability,
 )
 from generators import cli as gcli
-from generators import scenes
+from generators import cli_paths, scenes
 from surrogate.commands import dataset, rollout, train
 
 #: who adds which subcommands, in the order `graphdem --help` lists them
@@ -58,6 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The subcommands' parsers of the `graphdem` parser ``parser``, by name."""
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
 def errors() -> tuple[type[Exception], ...]:
     """The errors `graphdem` reports as one line on stderr (exit status 1): the generators' and the surrogate's."""
     from surrogate.errors import CheckpointError, TrainingDiverged
@@ -65,8 +71,9 @@ def errors() -> tuple[type[Exception], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    gcli.check_outputs(args)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    cli_paths.check(subcommands(parser)[args.command], args)
     try:
         args.func(args)
     except errors() as exc:

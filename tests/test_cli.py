@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from generators import cli_paths
 from graphdem import cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,3 +111,45 @@ def test_every_subcommand_is_described_by_its_run_functions_docstring():
             continue
         assert parser.description == inspect.getdoc(run), name
     assert "stable limit" in sub.choices["stability-dem"].format_help()
+
+
+# a dest that names a path: an option with one and no type of its own takes a path (a str)
+PATH_LIKE = re.compile(r"(^|_)(out|dir|dirs|path|paths|file|files|folder|plot|plots|html|csv|markdown|table|tables|"
+                       r"root|results|checkpoint|data|splits|stats|raw|packing|packings|truth|readout|rollouts|"
+                       r"ensemble|src|dest|trajectory|runs|histories|metrics|steps)($|_)")
+
+
+def undeclared_path_options(parser: argparse.ArgumentParser) -> list[str]:
+    """Every subcommand's options whose value is a path (type Path, or no type and a path-like dest) but whose type
+    is not one of generators/cli_paths.py's: neither a declared output nor an input the output check compares."""
+    found = []
+    for name, sub in _subcommands(parser).items():
+        for action in sub._actions:
+            if action.nargs == 0 or isinstance(action.type, cli_paths.PathType):
+                continue
+            untyped = action.type in (None, str) and action.choices is None and PATH_LIKE.search(action.dest)
+            if action.type is Path or untyped:
+                found.append(f"{name} {cli_paths.option_name(action)}")
+    return found
+
+
+def test_every_path_option_of_every_subcommand_is_a_declared_output_or_input():
+    """A new option that writes cannot escape the output check: its path must be declared (output_file,
+    output_folder, ..., or input_path, split_table) where it is added."""
+    parser = cli.build_parser()
+    assert undeclared_path_options(parser) == []
+    declared = {name: cli_paths.declared(sub) for name, sub in _subcommands(parser).items()}
+    outputs = {f"{name} {cli_paths.option_name(a)}" for name, d in declared.items() for a, k in d if k.writes}
+    assert {"evaluate --table-html", "stability-surrogate --frames-out", "performance-report --substeps-plot",
+            "shear-stress-readout --history", "export --out", "import-solidgn DEST"} <= outputs
+    assert all(declared[name] for name in SUBCOMMANDS)
+
+
+def test_the_declaration_test_sees_an_undeclared_path_option():
+    parser = cli.build_parser()
+    rogue = _subcommands(parser)["seeds"]
+    rogue.add_argument("--cache", type=Path)
+    rogue.add_argument("--report-out")
+    rogue.add_argument("--log-file", type=str)
+    rogue.add_argument("--label")
+    assert undeclared_path_options(parser) == ["seeds --cache", "seeds --report-out", "seeds --log-file"]

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file
 from surrogate.commands import options
 
 DESCRIPTION = """\
@@ -46,17 +47,19 @@ def register(sub) -> None:
     p.add_argument("--benchmark", choices=sorted(gcli.gconfig.BENCHMARKS), required=True,
                    help="the public benchmark (its name in the card)")
     p.add_argument("--seeds", type=int, nargs="+", required=True, help="the training seeds, one per model")
-    p.add_argument("--metrics", type=Path, nargs="+", required=True,
+    p.add_argument("--metrics", type=input_path, nargs="+", required=True,
                    help="each seed's metrics.csv (graphdem evaluate --out), in --seeds order")
-    p.add_argument("--steps", type=Path, nargs="+", required=True,
+    p.add_argument("--steps", type=input_path, nargs="+", required=True,
                    help="each seed's per-step table (graphdem evaluate --per-step), in --seeds order")
-    p.add_argument("--histories", type=Path, nargs="+", required=True,
+    p.add_argument("--histories", type=input_path, nargs="+", required=True,
                    help="each seed's model/history.csv (graphdem train), in --seeds order")
-    p.add_argument("--stats", type=Path, required=True, help="the dataset's stats.json (the mean particle radius)")
-    p.add_argument("--ensemble-metrics", type=Path,
+    p.add_argument("--stats", type=input_path, required=True,
+                   help="the dataset's stats.json (the mean particle radius)")
+    p.add_argument("--ensemble-metrics", type=input_path,
                    help="the seed ensemble's metrics.csv (graphdem evaluate with every seed's --checkpoint): its "
                         "rows join the card as seed_ensemble, costed as all its models")
-    p.add_argument("--ensemble-steps", type=Path, help="the seed ensemble's per-step table (with --ensemble-metrics)")
+    p.add_argument("--ensemble-steps", type=input_path,
+                   help="the seed ensemble's per-step table (with --ensemble-metrics)")
     p.add_argument("--article-json", type=options.json_arg, required=True,
                    help='the article\'s figures, the config\'s B.article: {"history": K, "split": "test", '
                         '"rollout_mse": {"graphdem": ..., "gns": ...}}')
@@ -67,8 +70,8 @@ def register(sub) -> None:
                    help="torch threads a model trained on (one process, on --device), for a history.csv that does "
                         "not record where it ran (written before it had the threads and device columns); default: "
                         "refuse such a file")
-    p.add_argument("--out", type=Path, required=True, help="card.csv to write")
-    p.add_argument("--markdown", type=Path, required=True, help="card.md to write")
+    p.add_argument("--out", type=output_file, required=True, help="card.csv to write")
+    p.add_argument("--markdown", type=output_file, required=True, help="card.md to write")
     p.set_defaults(func=run)
 
 

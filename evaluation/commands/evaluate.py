@@ -8,6 +8,7 @@ from pathlib import Path
 
 from evaluation.commands import metric_options
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file, output_folder, split_table
 from surrogate.commands import options
 
 
@@ -15,7 +16,7 @@ def register(sub) -> None:
     p = gcli.add_command(sub, "evaluate", run_evaluate,
                          help="rollout MSE and scene metrics of a checkpoint on H5MD sims")
     options.checkpoint_and_data(p, data_required=False, ensemble=True)
-    p.add_argument("--splits", type=Path, help="a split table (id, split, path); evaluates the sims of --split")
+    p.add_argument("--splits", type=split_table, help="a split table (id, split, path); evaluates the sims of --split")
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
                    help="which split the sims are (with --data) or which to take from --splits; auto: test where "
                         "the table has one, else valid (said in every output)")
@@ -23,12 +24,12 @@ def register(sub) -> None:
                    help="K of each protocol: frames given from the data and not scored; at least the history "
                         "length the checkpoint reads (more: each step still reads its last frames). Several K: "
                         "one table with a row set per K (the history column), plots of all, the GIF of the first")
-    p.add_argument("--out", type=Path, required=True, help="metrics CSV to write")
-    p.add_argument("--per-step", type=Path, help="per-step CSV (truth and prediction per metric and frame)")
-    p.add_argument("--table-html", type=Path,
+    p.add_argument("--out", type=output_file, required=True, help="metrics CSV to write")
+    p.add_argument("--per-step", type=output_file, help="per-step CSV (truth and prediction per metric and frame)")
+    p.add_argument("--table-html", type=output_file,
                    help="metrics CSV as an HTML table whose empty cells say n/a or undefined and why (the report's)")
-    p.add_argument("--rollouts", type=Path, help="folder of rollouts made by this checkpoint (else roll out now)")
-    p.add_argument("--ensemble", type=Path, nargs="+",
+    p.add_argument("--rollouts", type=input_path, help="folder of rollouts made by this checkpoint (else roll out now)")
+    p.add_argument("--ensemble", type=input_path, nargs="+",
                    help="the DEM ensemble's member folders, <sim id>.h5 per sim in each: the sim rerun by its engine "
                         "from its own state at the last given frame, perturbed; scored member by member (method "
                         "dem_ensemble) and as the members' mean (dem_ensemble_mean), and their spread is the unit "
@@ -37,15 +38,15 @@ def register(sub) -> None:
                    help='the bootstrap of every figure\'s interval, {"samples": N, "level": L, "seed": S} (default: '
                         "the config's intervals)")
     metric_options.scene_metric_options(p)
-    p.add_argument("--plots", type=Path, help="folder for metrics_over_frames.png and rollout.gif")
+    p.add_argument("--plots", type=output_folder, help="folder for metrics_over_frames.png and rollout.gif")
     p.add_argument("--animate", help="sim id to animate (default: the first)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
     p = gcli.add_command(sub, "combine", run_combine,
                          help="stack CSV tables of the same columns (e.g. one per protocol)")
-    p.add_argument("--tables", type=Path, nargs="+", required=True)
+    p.add_argument("--tables", type=input_path, nargs="+", required=True)
     p.add_argument("--union", action="store_true", help="tables may have different columns (blank where missing)")
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=output_file, required=True)
 
 
 def run_evaluate(args) -> None:

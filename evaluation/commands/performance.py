@@ -9,6 +9,7 @@ from pathlib import Path
 from evaluation.commands import metric_options
 from generators import cli as gcli
 from generators import scenes
+from generators.cli_paths import input_path, output_file
 from surrogate.commands import options
 
 
@@ -20,12 +21,12 @@ def register(sub) -> None:
     p.add_argument("--variant", type=options.json_arg, required=True,
                    help='changes, e.g. {"dt_safety": 0.1, "ranks": 2}')
     p.add_argument("--sims", type=options.json_arg, required=True, help="the sims' sweep rows (JSON list)")
-    p.add_argument("--packings", type=Path, required=True, help="folder of the settled packings")
-    p.add_argument("--truth", type=Path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
+    p.add_argument("--packings", type=input_path, required=True, help="folder of the settled packings")
+    p.add_argument("--truth", type=input_path, nargs="+", required=True, help="the sims' H5MD files, in --sims order")
     p.add_argument("--history", type=int, required=True, help="K: frames not scored (the surrogate's input)")
     p.add_argument("--repeats", type=int, required=True)
     metric_options.scene_metric_options(p)
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=output_file, required=True)
 
     p = gcli.add_command(sub, "performance-surrogate", run_surrogate, help="time and score one surrogate contender")
     options.checkpoint_and_data(p)
@@ -33,17 +34,17 @@ def register(sub) -> None:
     p.add_argument("--variant", type=options.json_arg, required=True, help='changes, e.g. {"precision": "bfloat16"}')
     p.add_argument("--repeats", type=int, required=True)
     metric_options.scene_metric_options(p)
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=output_file, required=True)
 
     p = gcli.add_command(sub, "performance-report", run_report,
                          help="performance.csv and the Pareto plot from the contenders' rows")
-    p.add_argument("--tables", type=Path, nargs="+", required=True, help="one CSV per contender")
+    p.add_argument("--tables", type=input_path, nargs="+", required=True, help="one CSV per contender")
     p.add_argument("--main", required=True, help="the surrogate contender of the headline figures")
     p.add_argument("--reference", required=True, help="the DEM reference contender")
-    p.add_argument("--packings", type=Path, nargs="*", help="packing folders (their settling time is reported)")
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--plot", type=Path, required=True)
-    p.add_argument("--substeps-plot", type=Path, help="the speed-up against DEM sub-steps per frame (PNG)")
+    p.add_argument("--packings", type=input_path, nargs="*", help="packing folders (their settling time is reported)")
+    p.add_argument("--out", type=output_file, required=True)
+    p.add_argument("--plot", type=output_file, required=True)
+    p.add_argument("--substeps-plot", type=output_file, help="the speed-up against DEM sub-steps per frame (PNG)")
     p.add_argument("--title", default="run time against error")
 
 

@@ -3,28 +3,29 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file
 from surrogate.commands import options
 
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "property-sensitivity", run,
                          help="the property-sensitivity test (article Fig. 14) of a checkpoint")
-    p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
-    p.add_argument("--runs", type=Path, nargs=2, required=True, metavar=("LOW", "HIGH"),
+    p.add_argument("--checkpoint", type=input_path, required=True, help="the model that made the rollouts (best.pt)")
+    p.add_argument("--runs", type=input_path, nargs=2, required=True, metavar=("LOW", "HIGH"),
                    help="the low and the high value's run folders, each with sims/<id>.h5 and rollouts/<id>.h5")
     p.add_argument("--sims", nargs="+", required=True, metavar="ID", help="the test sims' ids")
     p.add_argument("--property", required=True, help="the node property the runs differ in (e.g. young)")
     p.add_argument("--history", type=int, required=True, help="K, the frames each rollout was given")
     p.add_argument("--tolerance", type=float, default=0.25,
                    help="a sim passes when Graph-DEM's change has the DEM's sign and is within this fraction of it")
-    p.add_argument("--sims-dir", type=Path, help="the scene's sims folder (with --ensemble: the chaos of each sim)")
-    p.add_argument("--ensemble", type=Path, help="the DEM ensemble's sims folder: each sim rerun from a perturbed "
-                                                 "packing; its change of mean x is the chaos the signal stands beside")
-    p.add_argument("--out", type=Path, required=True, help="CSV: one row per sim, then 'all'")
-    p.add_argument("--plot", type=Path, help="PNG: Fig. 14's overlay of the first sim and the changes per sim")
+    p.add_argument("--sims-dir", type=input_path,
+                   help="the scene's sims folder (with --ensemble: the chaos of each sim)")
+    p.add_argument("--ensemble", type=input_path,
+                   help="the DEM ensemble's sims folder: each sim rerun from a perturbed packing; its change of mean x "
+                        "is the chaos the signal stands beside")
+    p.add_argument("--out", type=output_file, required=True, help="CSV: one row per sim, then 'all'")
+    p.add_argument("--plot", type=output_file, help="PNG: Fig. 14's overlay of the first sim and the changes per sim")
     p.add_argument("--title", help="the plot's title")
 
 

@@ -3,18 +3,17 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file
 from surrogate.commands import options
 
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "seeds", run,
                          help="mean and spread of every metric over models trained with different seeds")
-    p.add_argument("--metrics", type=Path, nargs="+", required=True, help="one metrics.csv per seed")
+    p.add_argument("--metrics", type=input_path, nargs="+", required=True, help="one metrics.csv per seed")
     p.add_argument("--seeds", type=int, nargs="+", required=True, help="the seed of each table, in the same order")
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=output_file, required=True)
 
 
 def run(args) -> None:

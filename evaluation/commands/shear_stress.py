@@ -4,35 +4,34 @@ evaluation/shear_stress_check.py)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file, split_table
 from surrogate.commands import options
 
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "shear-stress-readout", run_readout,
                          help="train the shear-stress readout on a shear dataset's DEM frames")
-    p.add_argument("--splits", type=Path, required=True, help="the dataset's splits.csv (train and valid sims)")
+    p.add_argument("--splits", type=split_table, required=True, help="the dataset's splits.csv (train and valid sims)")
     p.add_argument("--settings-json", type=options.json_arg, required=True,
                    help="the scene's shear_stress_readout settings: cutoff, hidden, layers, epochs, lr, seed")
-    p.add_argument("--out", type=Path, required=True, help="the readout to write (.pt: tensors and JSON)")
-    p.add_argument("--history", type=Path, required=True, help="CSV: train and valid MSE per epoch")
+    p.add_argument("--out", type=output_file, required=True, help="the readout to write (.pt: tensors and JSON)")
+    p.add_argument("--history", type=output_file, required=True, help="CSV: train and valid MSE per epoch")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     p = gcli.add_command(sub, "shear-stress-check", run_test,
                          help="the predicted against the DEM's peak shear stress of the test sims")
-    p.add_argument("--readout", type=Path, required=True, help="the readout (graphdem shear-stress-readout)")
-    p.add_argument("--checkpoint", type=Path, required=True, help="the model that made the rollouts (best.pt)")
-    p.add_argument("--sims", type=Path, nargs="+", required=True, help="the test sims' H5MD files")
-    p.add_argument("--rollouts", type=Path, required=True, help="the folder of the rollouts, <id>.h5")
-    p.add_argument("--ensemble", type=Path, help="the DEM ensemble's folder, <id>.h5 (its observable: the chaos)")
+    p.add_argument("--readout", type=input_path, required=True, help="the readout (graphdem shear-stress-readout)")
+    p.add_argument("--checkpoint", type=input_path, required=True, help="the model that made the rollouts (best.pt)")
+    p.add_argument("--sims", type=input_path, nargs="+", required=True, help="the test sims' H5MD files")
+    p.add_argument("--rollouts", type=input_path, required=True, help="the folder of the rollouts, <id>.h5")
+    p.add_argument("--ensemble", type=input_path, help="the DEM ensemble's folder, <id>.h5 (its observable: the chaos)")
     p.add_argument("--history", type=int, required=True, help="K, the frames each rollout was given")
     p.add_argument("--tolerance", type=float, required=True,
                    help="a sim passes when Graph-DEM's peak is within this fraction of the DEM's")
-    p.add_argument("--out", type=Path, required=True, help="CSV: one row per sim, then 'all'")
-    p.add_argument("--plot", type=Path, help="PNG: the stress curves per sim")
+    p.add_argument("--out", type=output_file, required=True, help="CSV: one row per sim, then 'all'")
+    p.add_argument("--plot", type=output_file, help="PNG: the stress curves per sim")
     p.add_argument("--title", help="the plot's title")
 
 

@@ -3,9 +3,8 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from generators import cli as gcli
+from generators.cli_paths import output_file
 from surrogate.commands import options
 
 
@@ -20,9 +19,10 @@ def register(sub) -> None:
     p.add_argument("--energy-envelope", type=float, default=float("inf"),
                    help="a frame whose kinetic energy exceeds this multiple of the data's peak leaves the physical "
                         "envelope (default: no energy limit)")
-    p.add_argument("--out", type=Path, required=True, help="CSV report")
-    p.add_argument("--frames-out", type=Path, help="CSV: per frame of each long rollout (energy, overlaps, outside)")
-    p.add_argument("--plot", type=Path, help="PNG: kinetic energy and overlaps per frame of the long rollouts")
+    p.add_argument("--out", type=output_file, required=True, help="CSV report")
+    p.add_argument("--frames-out", type=output_file,
+                   help="CSV: per frame of each long rollout (energy, overlaps, outside)")
+    p.add_argument("--plot", type=output_file, help="PNG: kinetic energy and overlaps per frame of the long rollouts")
     p.add_argument("--title", help="the plot's title")
 
 

@@ -26,6 +26,7 @@ from evaluation.doc_tables import blocks
 from evaluation.doc_tables.blocks import Block, MarkerError, Stamp
 from evaluation.doc_tables.kinds import KINDS, Kind
 from generators.atomic import atomic_path
+from generators.cli_paths import input_path
 
 __all__ = ["DOCUMENTS", "Outcome", "check", "code_hash", "documents", "plan", "write", "add_command"]
 
@@ -250,14 +251,14 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("tables", help="write the README's and docs' results tables from the results CSVs, or check "
                                       "their stamps", description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("files", type=Path, nargs="*",
+    p.add_argument("files", type=input_path, nargs="*",
                    help=f"markdown files to look at (default: {', '.join(DOCUMENTS)} under --root)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--write", action="store_true", help="regenerate the tables whose CSV exists")
     mode.add_argument("--check", action="store_true",
                       help="list the tables whose producing code changed since their stamp (exit 1), reading no "
                            "results")
-    p.add_argument("--root", type=Path, default=Path("."),
+    p.add_argument("--root", type=input_path, default=Path("."),
                    help="the repository: where the markdown files and the results folder are (default: .)")
-    p.add_argument("--results", type=Path, help=f"the results folder (default: ROOT/{RESULTS})")
+    p.add_argument("--results", type=input_path, help=f"the results folder (default: ROOT/{RESULTS})")
     p.set_defaults(func=run)

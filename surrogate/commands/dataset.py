@@ -7,30 +7,31 @@ import json
 from pathlib import Path
 
 from generators import cli as gcli
+from generators.cli_paths import input_path, output_file, output_folder, split_table
 from surrogate.commands import options
 
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "dataset", run_dataset, help="write splits.csv and stats.json (train split only)")
     options.scene_or_benchmark(p, True, "the sims are of (the plot's title)")
-    p.add_argument("--table", type=Path, required=True, help="sweep.csv or a split table (id, split[, path])")
-    p.add_argument("--sims", type=Path, help="folder of <id>.h5 files, for a table without a path column")
-    p.add_argument("--out-dir", type=Path, required=True)
+    p.add_argument("--table", type=split_table, required=True, help="sweep.csv or a split table (id, split[, path])")
+    p.add_argument("--sims", type=input_path, help="folder of <id>.h5 files, for a table without a path column")
+    p.add_argument("--out-dir", type=output_folder, required=True)
     p.add_argument("--connectivity-radius", type=float, required=True, help="graph radius R (m)")
     p.add_argument("--max-neighbours", type=int,
                    help="a neighbour cap (the model's max_neighbours): stats.json reports the share of receivers "
                         "it truncates and of edges it drops on the train split; default: no cap")
-    p.add_argument("--plot", type=Path, help="PNG of the first train sim's first and last frame")
+    p.add_argument("--plot", type=output_file, help="PNG of the first train sim's first and last frame")
 
     p = gcli.add_command(sub, "contacts", run_contacts,
                          help="next-frame contacts a graph of radius R, capped or not, would miss")
-    p.add_argument("--splits", type=Path, required=True, help="a dataset's splits.csv (id, split, path)")
+    p.add_argument("--splits", type=split_table, required=True, help="a dataset's splits.csv (id, split, path)")
     p.add_argument("--split", default="train", help="the split to count (default: train)")
     p.add_argument("--radius", type=float, nargs="+", required=True, metavar="R", help="connectivity radii (m)")
     p.add_argument("--cap", type=int, nargs="*", metavar="N",
                    help="neighbour caps (senders per receiver, at most 64); no cap is always a row")
     p.add_argument("--sims", type=int, help="only the split's first N sims")
-    p.add_argument("--out", type=Path, help="also write the table as CSV")
+    p.add_argument("--out", type=output_file, help="also write the table as CSV")
 
 
 def run_dataset(args) -> None:

@@ -8,6 +8,7 @@ import argparse
 from pathlib import Path
 
 from generators import cli as gcli
+from generators.cli_paths import input_path
 
 json_arg = gcli.json_arg
 
@@ -21,13 +22,13 @@ def log_to_stderr(quiet: bool = False) -> None:
 
 def checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True, ensemble: bool = False) -> None:
     if ensemble:
-        p.add_argument("--checkpoint", type=Path, nargs="+", required=True,
+        p.add_argument("--checkpoint", type=input_path, nargs="+", required=True,
                        help="a best.pt or last.pt written by train; several: an ensemble, every step the mean of "
                             "their accelerations is integrated (the models must share history, R, the neighbour "
                             "cap, the frame interval, box and types; docs/surrogate.md)")
     else:
-        p.add_argument("--checkpoint", type=Path, required=True, help="a best.pt or last.pt written by train")
-    p.add_argument("--data", type=Path, nargs="+", required=data_required, help="H5MD files or folders of them")
+        p.add_argument("--checkpoint", type=input_path, required=True, help="a best.pt or last.pt written by train")
+    p.add_argument("--data", type=input_path, nargs="+", required=data_required, help="H5MD files or folders of them")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--allow-other-scene", action="store_true",
                    help="score sims of another scene (or other kinematic species) than the checkpoint was trained on")

@@ -6,13 +6,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from generators import cli as gcli
+from generators.cli_paths import output_folder
 from surrogate.commands import options
 
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "rollout", run, help="predict every frame after the first K of each sim; write H5MD")
     options.checkpoint_and_data(p, ensemble=True)
-    p.add_argument("--out-dir", type=Path, required=True)
+    p.add_argument("--out-dir", type=output_folder, required=True)
 
 
 def run(args) -> None:

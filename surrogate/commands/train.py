@@ -8,6 +8,7 @@ from pathlib import Path
 
 from generators import cli as gcli
 from generators import scenes
+from generators.cli_paths import input_path, output_folder, split_table
 from surrogate.commands import options
 
 
@@ -17,9 +18,9 @@ def register(sub) -> None:
                                 "and results/<name>/model/, <name> the scene or public benchmark.")
     options.scene_or_benchmark(p, False, "whose model and train sections to use")
     gcli.config_options(p)
-    p.add_argument("--stats", type=Path, help="dataset stats.json (default results/<name>/dataset/stats.json)")
-    p.add_argument("--splits", type=Path, help="dataset splits.csv (default results/<name>/dataset/splits.csv)")
-    p.add_argument("--out-dir", type=Path, help="checkpoint folder (default results/<name>/model)")
+    p.add_argument("--stats", type=input_path, help="dataset stats.json (default results/<name>/dataset/stats.json)")
+    p.add_argument("--splits", type=split_table, help="dataset splits.csv (default results/<name>/dataset/splits.csv)")
+    p.add_argument("--out-dir", type=output_folder, help="checkpoint folder (default results/<name>/model)")
     # the workflow passes its already resolved sections (internal; users give --scene or --benchmark, --config, --set)
     p.add_argument("--model-json", type=options.json_arg, help=argparse.SUPPRESS)
     p.add_argument("--train-json", type=options.json_arg, help=argparse.SUPPRESS)
