@@ -24,7 +24,7 @@ from evaluation.stored import read_ensemble, read_rollout
 from evaluation.summary import summarise
 from evaluation.tables import read_csv
 from generators import h5md
-from generators.atomic import atomic_path
+from generators.atomic import Outputs, atomic_outputs
 from surrogate import ensemble, provenance
 from surrogate.provenance import as_paths
 from surrogate.rollout import rollout, rollout_mse
@@ -305,17 +305,26 @@ def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
     return mean
 
 
-def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv: Path | None) -> None:
-    with atomic_path(Path(out_csv)) as tmp:
-        table.to_csv(tmp, index=False)
+def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv: Path | None,
+          output: Outputs | None = None) -> Path:
+    """The metrics table at ``out_csv`` and, if given, the per-step table (the mean over sims first) at
+    ``per_step_csv``; both or neither. With ``output`` (generators.atomic.atomic_outputs) they are staged in that
+    group, appearing only with its other outputs. Returns where the metrics CSV is (its temporary while staged)."""
+    if output is None:
+        with atomic_outputs() as group:
+            write(table, steps, out_csv, per_step_csv, group)
+        return Path(out_csv)
+    with output(Path(out_csv)) as metrics:
+        table.to_csv(metrics, index=False)
     if per_step_csv is not None:
         mean = mean_per_step(steps)
         # the provenance columns (the same in every row), not the keys of the mean: under several protocols the
         # mean rows keep their own history
         extra = [c for c in steps.columns if c not in (*STEP_VALUES, *mean.columns)]
         both = pd.concat([mean.assign(**{c: steps[c].iloc[0] for c in extra}), steps], ignore_index=True)
-        with atomic_path(Path(per_step_csv)) as tmp:
+        with output(Path(per_step_csv)) as tmp:
             both.to_csv(tmp, index=False)
+    return metrics
 
 
 def combine(paths: list[Path], union: bool = False) -> pd.DataFrame:

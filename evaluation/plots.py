@@ -13,7 +13,7 @@ import pandas as pd  # noqa: E402
 
 from evaluation.metrics import units  # noqa: E402
 from generators.atomic import atomic_path  # noqa: E402
-from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plane_section  # noqa: E402,F401
+from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plain, plane_section  # noqa: E402,F401
 
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
@@ -42,8 +42,8 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
         if first["truth"].notna().any():
             ax.plot(first[x], first["truth"], **STYLE["truth"])
         for method, group in part.groupby("method", sort=False):
-            ax.plot(group[x], group["prediction"], **STYLE.get(method, dict(label=method)))
-        ax.set_title(metric)
+            ax.plot(group[x], group["prediction"], **STYLE.get(method, dict(label=plain(method))))
+        ax.set_title(plain(metric))
         ax.set_xlabel("time (s)" if x == "time" else "predicted frame")
         ax.set_ylabel(units().get(metric.split(": ")[-1], ""))
         ax.grid(alpha=0.3)
@@ -55,7 +55,7 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
         axes.flat[0].legend(handles=handles, loc="upper left", fontsize=9, frameon=False)
     else:
         fig.legend(handles=handles, loc="lower right", fontsize=9, frameon=False)
-    fig.suptitle(title)
+    fig.suptitle(plain(title))
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
@@ -78,7 +78,7 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), dpi=dpi, sharey=True, constrained_layout=True)
     labels = labels or {}
     species = np.asarray(species)
-    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=labels.get(k, f"species {k}"))
+    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=plain(labels.get(k, f"species {k}")))
                for k, c in SPECIES_COLOURS.items() if k in set(species.tolist())]
     radii = radius if isinstance(radius, tuple) else (radius, radius)
     panels = ((axes[0], truth, "DEM (truth)", radii[0]), (axes[1], prediction, "Graph-DEM", radii[1]))
@@ -88,7 +88,7 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
         ax.title.set_animated(True)              # drawn per frame, not into the background
     axes[0].set_ylabel("y (m)")
     axes[1].legend(handles=handles, loc="upper right", fontsize=7)
-    fig.suptitle(title)
+    fig.suptitle(plain(title))
     fig.canvas.draw()                            # lays the figure out once: every frame has the same axes
     fig.set_layout_engine("none")
     canvas = fig.canvas
@@ -128,7 +128,7 @@ def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
         # surrogate variants share nearly one error: their names fan out upwards, one angle each
         for n, row in enumerate(part.sort_values("seconds_per_rollout").itertuples()):
             angle = 55 if kind == "surrogate" else 0
-            ax.annotate(row.contender, (row.seconds_per_rollout, row.mse), textcoords="offset points",
+            ax.annotate(plain(row.contender), (row.seconds_per_rollout, row.mse), textcoords="offset points",
                         xytext=(3, 5 + 4 * (n % 2) * (kind == "surrogate")), fontsize=7, rotation=angle)
     front = scored[scored["on_pareto_front"].astype(bool)].sort_values("seconds_per_rollout")
     ax.step(front["seconds_per_rollout"], front["mse"], where="post", color="black", lw=1.0, alpha=0.7,
@@ -144,7 +144,7 @@ def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
 
 def _finish(fig, ax, path: Path, title: str, legend_size: int) -> Path:
     """Title, log grid and legend of a one-panel performance plot; written atomically to ``path`` and closed."""
-    ax.set_title(title, fontsize=10)
+    ax.set_title(plain(title), fontsize=10)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=legend_size)
     with atomic_path(path) as tmp:
@@ -169,8 +169,8 @@ def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> 
         part = curve[curve["contender"] == d["contender"]]
         bold = d["contender"] == row.get("matched_dem")
         ax.plot(part["substeps_per_frame"], part["speedup"], color=colour, lw=2.4 if bold else 1.0,
-                label=f"{d['contender']} ({d['cores']:.0f} core{'s' if d['cores'] > 1 else ''})"
-                      + (", as accurate" if bold else ""))
+                label=plain(f"{d['contender']} ({d['cores']:.0f} core{'s' if d['cores'] > 1 else ''})"
+                            + (", as accurate" if bold else "")))
         actual = d["dem_steps_per_frame"] * d["seconds_per_dem_step"] / row["seconds_per_frame"]
         ax.scatter([d["dem_steps_per_frame"]], [actual], color=colour, s=30, zorder=3)
     ax.axhline(1.0, color="black", lw=0.8)
@@ -178,7 +178,7 @@ def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> 
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("DEM sub-steps per recorded frame (log; dots: each contender's own)")
-    ax.set_ylabel(f"speed-up of {main} over the DEM (log)")
+    ax.set_ylabel(plain(f"speed-up of {main} over the DEM (log)"))
     return _finish(fig, ax, path, title, legend_size=7)
 
 
@@ -188,7 +188,7 @@ def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 6.0), sharex=True, constrained_layout=True)
     quantile = [c for c in frames.columns if c.startswith("p") and c.endswith("_overlap")]
     for (sim, length), part in frames.groupby(["sim", "length"]):
-        label = f"{sim}, {length}x window"
+        label = plain(f"{sim}, {length}x window")
         line, = top.plot(part["frame"], part["kinetic_energy"], lw=1.0, label=label)
         bad = part[~part["in_envelope"].astype(bool)]
         top.scatter(bad["frame"], bad["kinetic_energy"], color=line.get_color(), marker="x", s=14)
@@ -199,7 +199,7 @@ def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:
     top.set_ylabel("kinetic energy of the moving particles")
     bottom.set_ylabel("overlap / smaller radius\n(solid: max, dotted: 99th percentile)")
     bottom.set_xlabel("frame")
-    top.set_title(f"{title} (x: outside the physical envelope)", fontsize=10)
+    top.set_title(plain(f"{title} (x: outside the physical envelope)"), fontsize=10)
     top.legend(fontsize=7)
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
@@ -224,11 +224,11 @@ def property_sensitivity(pairs: list, table: pd.DataFrame, path: Path, title: st
         for frame, colour, value in ((low, "tab:red", pair.low), (high, "0.6", pair.high)):
             ax.scatter(frame[moving, 0], frame[moving, vertical], s=4, color=colour, label=f"{value:.3g}")
             ax.axvline(float(np.mean(frame[moving, 0])), color=colour, ls="--", lw=1.0)
-        ax.set_title(f"{who}, {pair.sim}, last frame (dashed: mean x)", fontsize=9)
+        ax.set_title(plain(f"{who}, {pair.sim}, last frame (dashed: mean x)"), fontsize=9)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("z (m)" if vertical == 2 else "y (m)")
         ax.set_aspect("equal")
-        ax.legend(fontsize=7, title=str(table["property"].iloc[0]), title_fontsize=7)
+        ax.legend(fontsize=7, title=plain(table["property"].iloc[0]), title_fontsize=7)
     rows = table[table["sim"] != "all"]
     at = np.arange(len(rows))
     bars = axes[2]
@@ -240,11 +240,11 @@ def property_sensitivity(pairs: list, table: pd.DataFrame, path: Path, title: st
         bars.errorbar(at - 0.27, rows["dem_delta"] * 1e6, yerr=chaos, fmt="none", color="k", capsize=3,
                       label="DEM chaos (+-)")
     bars.axhline(0.0, color="k", lw=0.6)
-    bars.set_xticks(at, rows["sim"], rotation=30, fontsize=7)
+    bars.set_xticks(at, [plain(s) for s in rows["sim"]], rotation=30, fontsize=7)
     bars.set_ylabel("Delta mean x, high - low (um)")
     bars.set_title("property sensitivity per test sim", fontsize=9)
     bars.legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(plain(title), fontsize=10)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=130)
     plt.close(fig)
@@ -274,14 +274,14 @@ def stress_curves(curves: list, table: pd.DataFrame, history: int, path: Path, t
         if top > 0:
             ax.set_ylim(min(0.0, float(dem_side.min())) - 0.05 * top, top)
         row = table[table["sim"] == curve.sim].iloc[0]
-        ax.set_title(f"{curve.sim}: {row['normal_stress'] / 1e3:.3g} kPa, E {row['young']:.2g} Pa\n"
-                     f"peak error: Graph-DEM {100 * row['graphdem_error']:+.0f} %, "
-                     f"Coulomb {100 * row['coulomb_error']:+.0f} %", fontsize=8)
+        ax.set_title(plain(f"{curve.sim}: {row['normal_stress'] / 1e3:.3g} kPa, E {row['young']:.2g} Pa\n"
+                           f"peak error: Graph-DEM {100 * row['graphdem_error']:+.0f} %, "
+                           f"Coulomb {100 * row['coulomb_error']:+.0f} %"), fontsize=8)
         ax.set_xlabel("shear displacement (mm)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("shear stress (kPa)")
     axes[0][0].legend(fontsize=7)
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(plain(title), fontsize=9)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=130)

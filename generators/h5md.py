@@ -24,7 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from generators.atomic import atomic_path
+from generators.atomic import atomic_path, h5_file
 
 H5MD_VERSION = (1, 1)
 UNITS_MODULE_VERSION = (1, 0)
@@ -213,7 +213,7 @@ def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_no
     path = Path(path)
     traj.validate(str(path), allow_nonfinite)
     with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w") as f:
+        with h5_file(tmp) as f:        # built in memory: HDF5 never writes to the disk itself
             _write_h5md_group(f, author)
             part = f.create_group("particles/all")
             pos = _write_position(part, traj)

@@ -16,6 +16,13 @@ from generators.atomic import atomic_path  # noqa: E402
 SPECIES_COLOURS = {0: "#555555", 1: "#b5895a", 2: "#d43d2a", 3: "#3a6fb0"}
 
 
+def plain(text: object) -> str:
+    """``text`` as matplotlib draws it literally: every ``$`` escaped, so that text from data (a file name, a sim
+    id, a species name, a title given on the command line) is never read as mathtext markup (``$\\alpha$_x``
+    is drawn as typed, and an unbalanced or malformed one cannot make the plot fail)."""
+    return str(text).replace("$", r"\$")
+
+
 def draw_discs(ax, xy: np.ndarray, radius: np.ndarray, species: np.ndarray, alpha: float = 1.0) -> None:
     colours = [SPECIES_COLOURS.get(int(s), "#888888") for s in species]
     d = 2 * np.asarray(radius)
@@ -60,10 +67,10 @@ def first_last(path: str | Path, position: np.ndarray, radius: np.ndarray, speci
         ax.set_title(f"frame {frame}, t = {time[frame]:.4g} s")
     axes[0].set_ylabel(ylabel)
     if labels:
-        handles = [plt.Line2D([], [], marker="o", ls="", color=SPECIES_COLOURS.get(k, "#888"), label=v)
+        handles = [plt.Line2D([], [], marker="o", ls="", color=SPECIES_COLOURS.get(k, "#888"), label=plain(v))
                    for k, v in labels.items()]
         axes[1].legend(handles=handles, loc="upper right")
-    fig.suptitle(title)
+    fig.suptitle(plain(title))
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")

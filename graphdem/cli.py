@@ -14,6 +14,7 @@ reads, as every path option declares them where it is added (generators/cli_path
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from evaluation import doc_tables
@@ -71,12 +72,17 @@ def errors() -> tuple[type[Exception], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand. A file-size limit (``ulimit -f``) does not kill the process (SIGXFSZ is ignored): the
+    write fails with EFBIG, and that, like every OSError (a full disk, a folder not replaced by a file: the
+    outputs' generators.atomic.OutputError, naming the file), is one line on stderr and exit status 1."""
+    if hasattr(signal, "SIGXFSZ"):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     parser = build_parser()
     args = parser.parse_args(argv)
     cli_paths.check(subcommands(parser)[args.command], args)
     try:
         args.func(args)
-    except errors() as exc:
+    except (*errors(), OSError) as exc:
         print(f"graphdem {args.command}: error: {exc}", file=sys.stderr)
         return 1
     return 0

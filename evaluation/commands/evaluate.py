@@ -55,7 +55,6 @@ def run_evaluate(args) -> None:
     --ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of the test-set mean curve
     (acc_percent), beside the pooled one (acc_pooled_percent). The sims are --data, or one split of a --splits
     table. Several --checkpoint: their ensemble is scored as Graph-DEM."""
-    from evaluation import evaluate
     options.log_to_stderr()
     split, data, note = _split(args)
     if note:
@@ -63,15 +62,26 @@ def run_evaluate(args) -> None:
     if args.rollouts is not None and len(args.history) > 1:
         raise SystemExit("graphdem evaluate: --rollouts holds rollouts of one K; give one --history with it")
     table, steps, sims = _protocols(args, split, data, note)
-    evaluate.write(table, steps, args.out, args.per_step)
+    _write_outputs(args, table, steps, sims, split)
+
+
+def _write_outputs(args, table, steps, sims, split: str) -> None:
+    """--out, --per-step, --table-html and the --plots: all of them or none. Each is written under a temporary
+    name and they are renamed into place together once every one is written: a failed write (a full disk, a
+    file-size limit, a plot that fails) leaves the previous outputs as they were, and the error names the file."""
+    from evaluation import evaluate
+    from generators.atomic import atomic_outputs
     scene = str(table["scene"].iloc[0])
     name = str(sims[0].traj.parameters.get("dataset", scene))
-    if args.table_html:
-        from evaluation import metrics_table
-        metrics_table.write(args.out, args.table_html, f"{name}: Graph-DEM, constant velocity"
-                            + (" and the DEM ensemble" if args.ensemble else "") + f" on the {split} sims")
-    if args.plots:
-        _plots(args, steps, sims, name, split, nominal_time=scene == "solidgn")
+    with atomic_outputs() as output:
+        metrics = evaluate.write(table, steps, args.out, args.per_step, output)
+        if args.table_html:
+            from evaluation import metrics_table
+            with output(args.table_html) as tmp:
+                metrics_table.write(metrics, tmp, f"{name}: Graph-DEM, constant velocity"
+                                    + (" and the DEM ensemble" if args.ensemble else "") + f" on the {split} sims")
+        if args.plots:
+            _plots(args, steps, sims, name, split, output, nominal_time=scene == "solidgn")
 
 
 def _split(args) -> tuple[str, list, str]:
@@ -111,15 +121,17 @@ def _protocols(args, split: str, data, note: str):
     return pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first
 
 
-def _plots(args, steps, sims, name: str, split: str, nominal_time: bool) -> None:
-    """--plots: the metrics over the frames, and the GIF of --animate (or the first sim) beside the DEM.
-    ``nominal_time``: the sims store a nominal dt (Solid-GN), frames are the honest axis."""
+def _plots(args, steps, sims, name: str, split: str, output, nominal_time: bool) -> None:
+    """--plots: the metrics over the frames, and the GIF of --animate (or the first sim) beside the DEM, staged in
+    ``output`` (generators.atomic.atomic_outputs). ``nominal_time``: the sims store a nominal dt (Solid-GN), frames
+    are the honest axis."""
     from evaluation import evaluate, plots
     ks = ", ".join(str(k) for k in args.history)
-    plots.metrics_over_frames(evaluate.mean_per_step(steps), Path(args.plots) / "metrics_over_frames.png",
-                              f"{name}: mean over {len(sims)} {split} sims, K = {ks}"
-                              + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
-                              x="tau" if nominal_time else "time")
+    with output(Path(args.plots) / "metrics_over_frames.png") as tmp:
+        plots.metrics_over_frames(evaluate.mean_per_step(steps), tmp,
+                                  f"{name}: mean over {len(sims)} {split} sims, K = {ks}"
+                                  + ("\n(scored on valid, not a held-out test split)" if split == "valid" else ""),
+                                  x="tau" if nominal_time else "time")
     pick = next((s for s in sims if s.id == args.animate), sims[0]) if sims else None
     if pick is None:
         return
@@ -132,8 +144,9 @@ def _plots(args, steps, sims, name: str, split: str, nominal_time: bool) -> None
         (truth, radius_truth), (pred, radius_pred) = (plots.plane_section(p, radius, height) for p in (truth, pred))
         radius = (radius_truth, radius_pred)
         title += f"\nsection z = {1000 * height:.1f} mm (the box's split plane), seen from above"
-    plots.animation(Path(args.plots) / "rollout.gif", truth, pred, radius, t.species, t.time,
-                    t.box_lower[:2], t.box_upper[:2], args.history[0], title, names)
+    with output(Path(args.plots) / "rollout.gif") as tmp:
+        plots.animation(tmp, truth, pred, radius, t.species, t.time, t.box_lower[:2], t.box_upper[:2],
+                        args.history[0], title, names)
 
 
 def run_combine(args) -> None:

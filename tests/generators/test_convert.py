@@ -1,11 +1,19 @@
 """Convert a raw run folder into H5MD: a hand-written LAMMPS folder of a collapse sim (a fixed floor disc and two
 grains over three frames) comes out with the dumped positions, the fixed disc where the data file puts it, the
-record's parameters, properties and observables, and a folder the file cannot be made from is refused by name."""
+record's parameters, properties and observables, and a folder the file cannot be made from is refused by name.
+A write that fails (a file-size limit) or may not replace what is at the path (a folder) leaves that as it was,
+with one line naming the file."""
+
+import os
+import resource
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from generators import convert, h5md, record
+from generators.atomic import OutputError
 from generators.scenes import collapse
 
 from .lammps.raw import write_run
@@ -81,3 +89,34 @@ def test_a_folder_the_file_cannot_be_made_from_is_refused_by_name(tmp_path):
     record.write(lost / record.RUN_FILE, _record())
     with pytest.raises(h5md.H5MDError, match="did not record every moving particle \\(1 missing\\)"):
         convert.trajectory(lost)
+
+
+def _convert_limited(raw, out, limit: int) -> subprocess.CompletedProcess:
+    """`graphdem convert` in a process that may write files of at most ``limit`` bytes (``ulimit -f``)."""
+    def cap():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return subprocess.run([sys.executable, "-m", "graphdem", "convert", "--raw", str(raw), "--out", str(out)],
+                          capture_output=True, text=True, preexec_fn=cap, timeout=120)
+
+
+def test_a_file_size_limit_leaves_the_previous_file_and_says_so_in_one_line(tmp_path):
+    raw = _raw(tmp_path)
+    out = convert.convert(raw, tmp_path / "sims" / "sim.h5")
+    before = out.read_bytes()
+    assert len(before) > 16384
+    done = _convert_limited(raw, out, 8192)                # HDF5 used to crash here (SIGSEGV, 139)
+    assert (done.returncode, done.stderr) == (1, f"graphdem convert: error: {out}: cannot be written: File too large\n")
+    assert out.read_bytes() == before and os.listdir(out.parent) == ["sim.h5"]     # no temporary, no new file
+    fresh = tmp_path / "new" / "sim.h5"                  # nothing half-written where there was nothing
+    assert _convert_limited(raw, fresh, 8192).returncode == 1 and not fresh.parent.exists()
+    done = _convert_limited(raw, fresh, 2 ** 20)         # room enough: the same file as written in-process
+    assert done.returncode == 0 and fresh.read_bytes() == before
+
+
+def test_an_existing_folder_at_the_output_path_is_refused_not_replaced(tmp_path):
+    model = tmp_path / "model"
+    model.mkdir()
+    (model / "best.pt").write_bytes(b"weights")
+    with pytest.raises(OutputError, match=f"{model}: is an existing folder, which a file output does not replace"):
+        convert.convert(_raw(tmp_path), model)
+    assert os.listdir(model) == ["best.pt"] and (model / "best.pt").read_bytes() == b"weights"
