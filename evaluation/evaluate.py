@@ -250,7 +250,7 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     table = summarise(steps, frames, intervals)
     timing = _timing_rows(str(table["scene"].iloc[0]), sims, cap is not None)
     table = pd.concat([table, pd.DataFrame(timing).reindex(columns=table.columns)], ignore_index=True)
-    configs = [{"model": m["model"], "train": m["train"]} for m in metas]
+    configs = [{"model": m["model"], "train": m.get("train")} for m in metas]
     recorded = {"split": split, "split_note": split_note, "history": int(history),
                 "checkpoint": name, "checkpoint_sha": sha,
                 "config_sha": ensemble.config_digest(metas),

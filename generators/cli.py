@@ -208,11 +208,6 @@ def cmd_export(args) -> None:
     distance to the truth's position) and error_radii (in the particle's radii). 2D gets z = 0. Written atomically:
     the .pvd appears last. Open NAME.pvd in ParaView (docs/export.md)."""
     from generators import export
-    folder = export.frames_dir(args.out).resolve()
-    for flag, given in (("", args.trajectory), ("--truth ", args.truth)):
-        if given is not None and (given.resolve() == folder or folder in given.resolve().parents):
-            raise SystemExit(f"graphdem export: --out {args.out} writes its frames into {export.frames_dir(args.out)}"
-                             f", which would overwrite the input {flag}{given}; write the output elsewhere")
     series = export.export_file(args.trajectory, args.out, args.truth, args.every)
     print(f"{series.pvd}: {len(series.frames)} frames (every {args.every}), t = {series.times[0]:.4g}.."
           f"{series.times[-1]:.4g} s, in {series.frames_dir}/ ({series.seconds:.2f} s)"

@@ -22,7 +22,7 @@ import meshio
 import numpy as np
 
 from generators import h5md
-from generators.atomic import atomic_path
+from generators.atomic import atomic_outputs
 
 #: the point data every frame carries (a truth adds ERROR_FIELDS); per-particle properties keep their own names
 #: unless they clash with one of these, when they are written as ``property_<name>``
@@ -155,8 +155,8 @@ def export(traj: h5md.Trajectory, pvd: str | Path, truth: h5md.Trajectory | None
     cells = [("vertex", np.arange(traj.n_particles, dtype=np.int64)[:, None])]
     width = max(6, len(str(traj.n_frames - 1)))
     entries = []
-    with atomic_path(pvd) as tmp_pvd:
-        with atomic_path(folder) as tmp_folder:
+    with atomic_outputs() as output:            # the frames and the .pvd replace the old series together
+        with output(folder) as tmp_folder:
             tmp_folder.mkdir()
             for frame in frames:
                 name = f"frame_{frame:0{width}d}.vtu"
@@ -164,8 +164,8 @@ def export(traj: h5md.Trajectory, pvd: str | Path, truth: h5md.Trajectory | None
                                    point_data=point_data(traj, frame, vel[frame], truth))
                 mesh.write(tmp_folder / name, file_format="vtu")
                 entries.append((float(traj.time[frame]), f"{folder.name}/{name}"))
-            pvd.unlink(missing_ok=True)          # the old series goes before its frames are replaced
-        write_pvd(tmp_pvd, entries)
+        with output(pvd) as tmp_pvd:
+            write_pvd(tmp_pvd, entries)
     return Series(pvd, folder, frames, tuple(t for t, _ in entries), time.perf_counter() - start)
 
 

@@ -126,4 +126,4 @@ def run_contacts(args) -> None:
         print(f"| {row['connectivity_radius']:g} | {row['cap'] if row['cap'] is not None else 'none'} "
               f"| {row['contacts']} | {row['missed']} | {row['miss_rate']:.3%} | {row['senders_per_receiver']:.2f} |")
     if args.out:
-        pd.DataFrame(rows).to_csv(args.out, index=False)
+        options.write_rows(rows, args.out)
