@@ -27,10 +27,10 @@ ERRORS = (runner.LammpsError, runner.MpiMismatch, io.LammpsOutputError)
 
 
 def ranks_problem(ranks: int) -> str | None:
-    """Why ``ranks`` MPI ranks cannot run here (no mpirun on PATH), said after the config key; None where they
-    can."""
+    """Why ``ranks`` MPI ranks cannot run here (no mpirun on PATH, no network namespace for it), said after the
+    config key; None where they can."""
     if ranks == 1 or runner.mpirun_path() is not None:
-        return None
+        return runner.isolation_problem(ranks)
     return (f"runs LAMMPS under `mpirun -np {ranks}`, and mpirun is not on PATH (Debian's openmpi-bin, installed "
             f"with lammps; or set {runner.MPIRUN_ENV} to it); allowed without it: 1")
 

@@ -52,7 +52,8 @@ def runs(tmp_path_factory):
 def test_the_two_rank_run_is_recorded_as_such(runs):
     serial, parallel = runs["records"][1].run, runs["records"][2].run
     assert serial.ranks == 1 and "mpirun" not in serial.command
-    assert parallel.ranks == 2 and parallel.command.split()[0].endswith("mpirun")
+    assert parallel.ranks == 2 and parallel.command.split()[0].endswith("unshare")     # mpirun in a namespace
+    assert f" {runner.mpirun_path()} --allow-run-as-root -np 2" in parallel.command
     assert "-np 2 --host localhost:2" in parallel.command and "--mca btl self,vader" in parallel.command
     assert runs["traj"][1].parameters["engine_ranks"] == 1 and runs["traj"][2].parameters["engine_ranks"] == 2
     log = (runs["raw"][2] / "log.lammps").read_text()
@@ -130,7 +131,7 @@ def test_a_3d_shear_box_with_moving_walls_on_two_ranks(tmp_path):
     load platen (moved by its forces, summed over the ranks) to the last printed digit."""
     from generators.scenes import shear
     cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008,
-                                                "frames": 6}})["shear"]
+                                                "frames": 6, "model": {"history": 5}}})["shear"]
     engine.prepare(shear.SCENE, "lammps", shear.SCENE.packings(cfg)[0], tmp_path / "packing")
     row = {**sweep.build("shear", cfg).iloc[0].to_dict(), "engine": "lammps"}
     raw = {}
@@ -159,6 +160,19 @@ def test_more_ranks_without_mpirun_are_refused_by_key(monkeypatch):
         config.load({"scale": "ci", "meteorite": {"ranks": 2}})
     assert config.load({"scale": "ci", "meteorite": {"ranks": 1}})["meteorite"]["ranks"] == 1
     with pytest.raises(runner.MpiUnavailable, match="allowed without it: ranks = 1"):
+        runner.command(2)
+
+
+def test_more_ranks_where_mpirun_cannot_have_a_network_namespace_are_refused_by_key(monkeypatch):
+    """mpirun listens on every address: where it cannot run in a namespace of its own (a container that refuses
+    user namespaces), more than one rank is refused when the config is read, and by the runner."""
+    monkeypatch.setattr(runner.netns, "problem", lambda: "unshare: Operation not permitted")
+    with pytest.raises(config.ConfigError, match=r"config key 'meteorite.ranks' = 2 runs LAMMPS under `mpirun -np 2` "
+                                                 r"in a network namespace of its own .*\(unshare: Operation not "
+                                                 r"permitted; .*allowed here: 1$"):
+        config.load({"scale": "ci", "meteorite": {"ranks": 2}})
+    assert runner.command(1)[0].endswith("lmp")
+    with pytest.raises(runner.MpiUnisolated, match=r"^ranks = 2 runs LAMMPS under .*allowed here: 1$"):
         runner.command(2)
 
 

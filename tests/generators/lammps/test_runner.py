@@ -49,7 +49,7 @@ def test_a_launcher_that_runs_a_serial_lmp_is_refused(tmp_path, monkeypatch):
     monkeypatch.setenv(runner.MPIRUN_ENV, str(fake))
     work = tmp_path / "work"
     work.mkdir()
-    assert runner.command(2)[0] == str(fake)
+    assert str(fake) in runner.command(2)
     with pytest.raises(runner.MpiMismatch, match="LAMMPS ran on 1 MPI rank\\(s\\), 2 asked for"):
         runner.run(EMPTY, work, ranks=2)
 
