@@ -9,12 +9,15 @@ it is the plain extrapolation ``p^{t+1} = 2 p^t - p^{t-1}``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
 from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
+    from generators import h5md
     from surrogate.runtime import Runtime
 
 
@@ -62,3 +65,28 @@ def _corrected(truth: np.ndarray, kin: np.ndarray, history: int, runtime: Runtim
         frame = torch.where(moving.unsqueeze(-1), 2.0 * pred[t - 1] - pred[t - 2], data[t])
         pred[t] = correct_step(frame, moving, radii, runtime, bounds, counts, pred[t - 1])
     return pred.numpy()
+
+
+@dataclass(frozen=True)
+class Extrapolation:
+    """Constant velocity as a model's rollouts ran: under its runtime switches and clamped to its box (the
+    checkpoint's data bounds), so that every comparison of a model with constant velocity uses one runtime."""
+
+    runtime: Runtime | None = None
+    box: tuple[np.ndarray, np.ndarray] | None = None
+
+    @classmethod
+    def of(cls, checkpoint: str | Path, runtime_json: dict | None) -> Extrapolation:
+        """The runtime of ``runtime_json`` (the scene's ``runtime`` section; None: no corrections) with the box of
+        ``checkpoint``'s model."""
+        from surrogate import checkpoint as ckpt
+        from surrogate.runtime import Runtime
+        if runtime_json is None:
+            return cls()
+        simulator, _ = ckpt.simulator_from(checkpoint)
+        box = (simulator.lower.double().numpy(), simulator.upper.double().numpy())
+        return cls(Runtime.from_config(runtime_json), box)
+
+    def __call__(self, traj: h5md.Trajectory, history: int) -> np.ndarray:
+        """Frames 0..T-1 of ``traj``: the data up to ``history``, then the extrapolation."""
+        return constant_velocity(traj.position, traj.kinematic, history, self.runtime, self.box, traj.radius)

@@ -14,8 +14,9 @@ same sign and ``ratio = graphdem_delta / dem_delta`` is within the tolerance (is
 the DEM's signal is stated beside it: against the DEM's own chaos (the same Delta between the sim and its
 DEM-ensemble rerun, ``chaos_delta``, when the ensemble exists) and against the soil's mean x motion over the
 predicted window (``motion``, of the low run). Constant-velocity extrapolation of the two reruns (from the same K
-frames) is scored by the same rule (``cv_delta``, ``cv_ratio``, ``cv_passed``): where it passes too, the change
-was already visible in the given frames, and the test says little about the model.
+frames, under the runtime switches and box of the model's rollouts) is scored by the same rule (``cv_delta``,
+``cv_ratio``, ``cv_passed``): where it passes too, the change was already visible in the given frames, and the test
+says little about the model.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from evaluation.baseline import constant_velocity
+from evaluation.baseline import Extrapolation
 from evaluation.stored import read_ensemble, read_rollout
 from generators import h5md
 from surrogate import dataset
@@ -95,9 +96,10 @@ def compare(dem: float, graphdem: float, chaos: float, tolerance: float) -> dict
 
 
 def score_pair(pair: Pair, history: int, tolerance: float, chaos: np.ndarray | None = None,
-               chaos_truth: np.ndarray | None = None) -> dict:
+               chaos_truth: np.ndarray | None = None, extrapolate: Extrapolation | None = None) -> dict:
     """The row of one pair (module docstring); ``chaos`` and ``chaos_truth`` are the sim's DEM-ensemble rerun and
-    the sim itself ([T, N, D] each), or None."""
+    the sim itself ([T, N, D] each), or None; ``extrapolate``: constant velocity under the model's runtime
+    (default: none)."""
     kinematic = pair.truth_low.kinematic
     truth_low, truth_high = mean_x(pair.truth_low.position, kinematic), mean_x(pair.truth_high.position, kinematic)
     pred_low, pred_high = mean_x(pair.predicted_low, kinematic), mean_x(pair.predicted_high, kinematic)
@@ -106,8 +108,8 @@ def score_pair(pair: Pair, history: int, tolerance: float, chaos: np.ndarray | N
         chaos_delta = float(abs(mean_x(chaos, kinematic)[-1] - mean_x(chaos_truth, kinematic)[-1]))
     dem = float(truth_high[-1] - truth_low[-1])
     result = compare(dem, float(pred_high[-1] - pred_low[-1]), chaos_delta, tolerance)
-    cv_low, cv_high = (mean_x(constant_velocity(t.position, kinematic, history), kinematic)[-1]
-                       for t in (pair.truth_low, pair.truth_high))
+    extrapolate = extrapolate or Extrapolation()
+    cv_low, cv_high = (mean_x(extrapolate(t, history), kinematic)[-1] for t in (pair.truth_low, pair.truth_high))
     return {"sim": pair.sim, "value_low": pair.low, "value_high": pair.high, "frame": len(truth_low) - 1,
             "history": history, **result, "motion": float(truth_low[-1] - truth_low[history - 1]),
             **_baseline(compare(dem, float(cv_high - cv_low), chaos_delta, tolerance))}
@@ -131,9 +133,10 @@ def summary(rows: pd.DataFrame, tolerance: float) -> dict:
 
 
 def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: int, tolerance: float,
-        chaos: tuple[Path, Path] | None = None) -> tuple[pd.DataFrame, list[Pair]]:
+        chaos: tuple[Path, Path] | None = None,
+        extrapolate: Extrapolation | None = None) -> tuple[pd.DataFrame, list[Pair]]:
     """The table (one row per sim, then 'all') and the pairs; ``chaos`` is (the sims' folder, the DEM
-    ensemble's folder) or None."""
+    ensemble's folder) or None; ``extrapolate``: constant velocity under the model's runtime."""
     if not sims:
         raise ValueError("the property-sensitivity test needs at least one test sim")
     rows, pairs = [], []
@@ -143,7 +146,7 @@ def run(runs: tuple[Path, Path], sims: list[str], name: str, sha: str, history: 
         if chaos is not None:
             base = h5md.read(Path(chaos[0]) / f"{sim}.h5")
             member, truth = read_ensemble(Path(chaos[1]) / f"{sim}.h5", base), base.position
-        rows.append(score_pair(pair, history, tolerance, member, truth))
+        rows.append(score_pair(pair, history, tolerance, member, truth, extrapolate))
         pairs.append(pair)
     table = pd.DataFrame(rows)
     table = pd.concat([table, pd.DataFrame([summary(table, tolerance)])], ignore_index=True)

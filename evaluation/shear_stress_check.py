@@ -6,8 +6,10 @@ Per test sim, over the predicted frames (K .. T-1; the rollout is given the firs
 * ``dem_peak``: the DEM's peak of its ``shear_stress`` observable (the truth);
 * ``readout_peak``: the readout applied to the DEM's own frames (the readout's error alone);
 * ``graphdem_peak``: the readout applied to Graph-DEM's rollout (the surrogate's prediction);
-* ``cv_peak``: the readout applied to constant-velocity extrapolation from the same K frames;
-* ``ensemble_peak``: the DEM ensemble rerun's own observable (the DEM's chaos: a second sample of the truth);
+* ``cv_peak``: the readout applied to constant-velocity extrapolation from the same K frames, under the runtime
+  switches and box of the model's rollouts;
+* ``ensemble_peak``: the first DEM ensemble member's own observable (the sim rerun from its state at the last
+  given frame, perturbed: the DEM's chaos, a second sample of the truth);
 * ``coulomb_peak``: no model at all, the Mohr-Coulomb guess a geotechnical engineer makes from the training tests:
   tau = sigma_n mu, mu the train sims' mean peak stress ratio (their peaks of tau / sigma_n over the same
   frames, averaged), along the train sims' mean curve of tau / sigma_n scaled to that peak (:func:`coulomb`).
@@ -27,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from evaluation import shear_stress
-from evaluation.baseline import constant_velocity
+from evaluation.baseline import Extrapolation
 from evaluation.stored import read_rollout
 from generators import h5md
 
@@ -63,8 +65,9 @@ def coulomb(train_ratio: list, normal_stress: float, history: int) -> np.ndarray
 
 
 def curves(model: shear_stress.StressReadout, meta: dict, traj: h5md.Trajectory, rollout: np.ndarray,
-           history: int, ensemble: h5md.Trajectory | None) -> Curves:
-    """The DEM's curve and the comparators' of one test sim (module docstring); ``meta`` is the readout's."""
+           history: int, ensemble: h5md.Trajectory | None, extrapolate: Extrapolation | None = None) -> Curves:
+    """The DEM's curve and the comparators' of one test sim (module docstring); ``meta`` is the readout's;
+    ``extrapolate``: constant velocity under the model's runtime (default: none)."""
     if "train_stress_ratio" not in meta:
         raise ValueError("the stress readout predates the Coulomb floor (no train_stress_ratio in its metadata): "
                          "refit it, e.g. snakemake -c2 results/<scene>/shear_stress.csv -R shear_stress_readout")
@@ -80,7 +83,7 @@ def curves(model: shear_stress.StressReadout, meta: dict, traj: h5md.Trajectory,
         "readout": shear_stress.read(model, truth, cutoff),
         "graphdem": shear_stress.read(model, shear_stress.Sample.from_trajectory(traj, rollout), cutoff),
         "cv": shear_stress.read(model, shear_stress.Sample.from_trajectory(
-            traj, constant_velocity(traj.position, traj.kinematic, history)), cutoff),
+            traj, (extrapolate or Extrapolation())(traj, history)), cutoff),
         "ensemble": (np.asarray(ensemble.observables["shear_stress"], float) if ensemble is not None
                      else np.full(len(truth.shear_stress), np.nan)),
         "coulomb": floor,
@@ -116,9 +119,10 @@ def summary(rows: pd.DataFrame, tolerance: float) -> dict:
 
 
 def run(readout: Path, sims: list[Path], rollouts: Path, sha: str, history: int, tolerance: float,
-        ensemble: Path | None = None) -> tuple[pd.DataFrame, list[Curves]]:
+        ensemble: Path | None = None, extrapolate: Extrapolation | None = None) -> tuple[pd.DataFrame, list[Curves]]:
     """The table (a row per sim, then ``all``) and the curves, from the test sims' files, the rollouts made by the
-    checkpoint of digest ``sha`` (``rollouts/<id>.h5``) and, optionally, the DEM ensemble (``ensemble/<id>.h5``)."""
+    checkpoint of digest ``sha`` (``rollouts/<id>.h5``), optionally the DEM ensemble's first member
+    (``ensemble/<id>.h5``), and constant velocity under the model's runtime (``extrapolate``; default: none)."""
     model, meta = shear_stress.load(readout)
     rows, all_curves = [], []
     for path in sims:
@@ -126,7 +130,7 @@ def run(readout: Path, sims: list[Path], rollouts: Path, sha: str, history: int,
         sim = str(traj.parameters["id"])
         rollout = read_rollout(rollouts / f"{sim}.h5", sha, history)
         member = h5md.read(ensemble / f"{sim}.h5") if ensemble is not None else None
-        curve = curves(model, meta, traj, np.asarray(rollout.position, np.float64), history, member)
+        curve = curves(model, meta, traj, np.asarray(rollout.position, np.float64), history, member, extrapolate)
         all_curves.append(curve)
         rows.append(score(curve, history, tolerance, float(traj.parameters["normal_stress"]),
                           float(traj.parameters["young"])))

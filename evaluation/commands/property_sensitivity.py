@@ -22,8 +22,11 @@ def register(sub) -> None:
     p.add_argument("--sims-dir", type=input_path,
                    help="the scene's sims folder (with --ensemble: the chaos of each sim)")
     p.add_argument("--ensemble", type=input_path,
-                   help="the DEM ensemble's sims folder: each sim rerun from a perturbed packing; its change of mean x "
-                        "is the chaos the signal stands beside")
+                   help="a DEM ensemble member's sims folder: each sim rerun from its state at the last given frame, "
+                        "perturbed; its change of mean x is the chaos the signal stands beside")
+    p.add_argument("--runtime-json", type=options.json_arg,
+                   help="the runtime switches the rollouts were made with (the scene's runtime section): constant "
+                        "velocity runs under them too; default: plain extrapolation")
     p.add_argument("--out", type=output_file, required=True, help="CSV: one row per sim, then 'all'")
     p.add_argument("--plot", type=output_file, help="PNG: Fig. 14's overlay of the first sim and the changes per sim")
     p.add_argument("--title", help="the plot's title")
@@ -34,13 +37,15 @@ def run(args) -> None:
     rollouts of both: the change of the moving particles' mean x at the last frame, DEM against Graph-DEM, same sign
     and ratio, beside the DEM's own chaos (docs/surrogate.md, Property sensitivity)."""
     from evaluation import plots, property_sensitivity
+    from evaluation.baseline import Extrapolation
     from surrogate import provenance
     if (args.ensemble is None) != (args.sims_dir is None):
         raise SystemExit("graphdem property-sensitivity: give --sims-dir and --ensemble together (the sims and their "
                          "DEM ensemble reruns), or neither")
     chaos = (args.sims_dir, args.ensemble) if args.ensemble is not None else None
     table, pairs = property_sensitivity.run(tuple(args.runs), args.sims, args.property,
-                                            provenance.digest(args.checkpoint), args.history, args.tolerance, chaos)
+                                            provenance.digest(args.checkpoint), args.history, args.tolerance, chaos,
+                                            Extrapolation.of(args.checkpoint, args.runtime_json))
     if args.plot:
         plots.property_sensitivity(pairs, table, args.plot, args.title or f"property sensitivity: {args.property}")
     options.write_table(table, args.out)

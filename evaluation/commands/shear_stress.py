@@ -27,6 +27,9 @@ def register(sub) -> None:
     p.add_argument("--sims", type=input_path, nargs="+", required=True, help="the test sims' H5MD files")
     p.add_argument("--rollouts", type=input_path, required=True, help="the folder of the rollouts, <id>.h5")
     p.add_argument("--ensemble", type=input_path, help="the DEM ensemble's folder, <id>.h5 (its observable: the chaos)")
+    p.add_argument("--runtime-json", type=options.json_arg,
+                   help="the runtime switches the rollouts were made with (the scene's runtime section): constant "
+                        "velocity runs under them too; default: plain extrapolation")
     p.add_argument("--history", type=int, required=True, help="K, the frames each rollout was given")
     p.add_argument("--tolerance", type=float, required=True,
                    help="a sim passes when Graph-DEM's peak is within this fraction of the DEM's")
@@ -60,9 +63,11 @@ def run_test(args) -> None:
     the DEM's observable and its ensemble rerun's; peak and curve errors per sim (evaluation/shear_stress_check.py).
     """
     from evaluation import plots, shear_stress_check
+    from evaluation.baseline import Extrapolation
     from surrogate import provenance
     table, curves = shear_stress_check.run(args.readout, args.sims, args.rollouts, provenance.digest(args.checkpoint),
-                                           args.history, args.tolerance, args.ensemble)
+                                           args.history, args.tolerance, args.ensemble,
+                                           Extrapolation.of(args.checkpoint, args.runtime_json))
     if args.plot:
         plots.stress_curves(curves, table, args.history, args.plot, args.title or "shear stress")
     options.write_table(table, args.out)

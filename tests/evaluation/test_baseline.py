@@ -57,3 +57,26 @@ def test_the_contact_correction_pushes_the_baselines_overlaps_apart_as_the_model
 def test_a_clamp_without_the_box_is_refused_by_name():
     with pytest.raises(ValueError, match="needs the data's box"):
         constant_velocity(moving_to_the_wall(), np.array([False, False]), 3, runtime(True))
+
+
+def test_the_extrapolation_of_a_checkpoint_runs_under_its_runtime_and_its_models_box(saved_checkpoint):
+    """`Extrapolation.of`: the runtime of the scene's section and the box of the checkpoint's model, the same
+    constant velocity `graphdem evaluate` scores; without a runtime, the plain extrapolation."""
+    from evaluation.baseline import Extrapolation
+    from generators import h5md
+    from surrogate import checkpoint
+    path, sim, _ = saved_checkpoint
+    traj = h5md.read(sim)
+    simulator, _ = checkpoint.simulator_from(path)
+    box = (simulator.lower.double().numpy(), simulator.upper.double().numpy())
+    section = {"split_edge_mlp": True, "skip_kinematic_pairs": True, "prune_isolated": True, "precision": "float32",
+               "sleep_speed": None, "keep_in_domain": True, "compile": False,
+               "contact_correction": {"allowed_overlap": 0.05, "iterations": 20}}
+    extrapolate = Extrapolation.of(path, section)
+    np.testing.assert_array_equal(extrapolate.box[0], box[0])
+    np.testing.assert_array_equal(extrapolate.box[1], box[1])
+    want = constant_velocity(traj.position, traj.kinematic, 4, Runtime.from_config(section), box, traj.radius)
+    np.testing.assert_array_equal(extrapolate(traj, 4), want)
+    np.testing.assert_array_equal(Extrapolation.of(path, None)(traj, 4),
+                                  constant_velocity(traj.position, traj.kinematic, 4))
+    assert not np.array_equal(want, constant_velocity(traj.position, traj.kinematic, 4))   # the runtime acts here

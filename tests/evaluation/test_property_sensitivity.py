@@ -154,4 +154,4 @@ def test_the_cli_writes_the_table_and_the_figure(tmp_path, capsys):
     assert "s_0" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="--sims-dir and --ensemble together"):
         main(["property-sensitivity", "--checkpoint", str(model), "--runs", str(low), str(high), "--sims", "s_0",
-              "--property", "young", "--history", str(K), "--out", str(out), "--ensemble", str(tmp_path)])
+              "--property", "young", "--history", str(K), "--out", str(out), "--ensemble", str(low)])

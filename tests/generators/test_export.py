@@ -222,7 +222,8 @@ def test_the_command_line_exports_a_rollout_against_its_truth(tmp_path, capsys):
     (["dem.h5", "--out", "s.vtu"], "graphdem export: error: s.vtu: a series is written as a .pvd file"),
     (["dem.h5", "--out", "s.pvd", "--truth", "gone.h5"], "graphdem export: error: gone.h5: no such file"),
     (["dem.h5", "--out", "dem.h5"], "--out dem.h5 would overwrite the input TRAJECTORY dem.h5"),
-    (["sims/dem.h5", "--out", "sims.pvd"], "--out sims.pvd (its frames folder sims) would overwrite the input TRAJECTORY sims/dem.h5"),
+    (["sims/dem.h5", "--out", "sims.pvd"],
+     "--out sims.pvd (its frames folder sims) would overwrite the input TRAJECTORY sims/dem.h5"),
     (["dem.h5", "--out", "s.pvd", "--every", "0"], "argument --every: expected a whole number >= 1, got '0'"),
     (["dem.h5", "--out", "s.pvd", "--every", "two"], "argument --every: expected a whole number >= 1, got 'two'"),
 ])

@@ -38,11 +38,13 @@ rule property_sensitivity:
                     labels={"figure": "property sensitivity (Fig. 14)", "scene": "{scene}"}),
     params:
         args=property_sensitivity_args,
+        runtime=runtime_json,
     threads: 1
     log:
         "results/{scene}/logs/property_sensitivity.log",
     benchmark:
         "results/{scene}/timings/property_sensitivity.tsv"
     shell:
-        "graphdem property-sensitivity --checkpoint {input.checkpoint:q} {params.args:q} --out {output.table:q} "
-        "--plot {output.plot:q} --title {wildcards.scene:q} > {log} 2>&1"
+        "graphdem property-sensitivity --checkpoint {input.checkpoint:q} {params.args:q} "
+        "--runtime-json {params.runtime:q} --out {output.table:q} --plot {output.plot:q} --title {wildcards.scene:q} "
+        "> {log} 2>&1"

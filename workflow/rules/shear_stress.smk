@@ -40,6 +40,7 @@ rule shear_stress_check:
                     labels={"figure": "shear stress curves", "scene": "{name}"}),
     params:
         args=shear_stress_check_args,
+        runtime=runtime_json,
     wildcard_constraints:
         name="|".join(SHEAR_STRESS_SCENES),
     threads: 1
@@ -49,5 +50,6 @@ rule shear_stress_check:
         "results/{name}/timings/shear_stress_check.tsv"
     shell:
         "graphdem shear-stress-check --readout {input.readout:q} --checkpoint {input.checkpoint:q} "
-        "--sims {input.sims:q} {params.args:q} --out {output.table:q} --plot {output.plot:q} "
+        "--sims {input.sims:q} {params.args:q} --runtime-json {params.runtime:q} --out {output.table:q} "
+        "--plot {output.plot:q} "
         "--title {wildcards.name:q} > {log} 2>&1"
