@@ -24,7 +24,7 @@ from typing import Any
 import jsonschema
 import yaml
 
-from generators import engines, property_sensitivity, scenes
+from generators import config_checks, engines, property_sensitivity, scenes
 from generators.errors import ConfigError
 
 DEFAULTS = resources.files("generators").joinpath("defaults")
@@ -149,7 +149,25 @@ def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = Fa
     if "oneOf" in node:                 # a choice of forms, e.g. a number or `auto`: name each
         allowed = " or ".join(_form(option, schema) for option in node["oneOf"])
         return f"config key {where!r} = {error.instance!r} is not allowed; allowed: {allowed}"
-    return f"config key {where!r} = {error.instance!r} is not allowed: {error.message}; allowed: {allowed}"
+    return f"config key {where!r} = {error.instance!r} is not allowed: {_type_words(error) or error.message}; " \
+        f"allowed: {allowed}"
+
+
+#: a JSON Schema type in words
+_TYPES = {"integer": "an integer", "number": "a number", "string": "a string", "boolean": "true or false",
+          "array": "a list", "object": "a mapping", "null": "null"}
+
+
+def _type_words(error: jsonschema.ValidationError) -> str:
+    """For a type error, what the key must be, in words (``it must be an integer (10, not 10.0)``); else empty."""
+    if error.validator != "type":
+        return ""
+    types = [error.validator_value] if isinstance(error.validator_value, str) else list(error.validator_value)
+    words = " or ".join(_TYPES.get(t, t) for t in types)
+    value = error.instance
+    hint = (f" ({int(value)}, not {value!r})" if "integer" in types and isinstance(value, float) and value.is_integer()
+            else "")
+    return f"it must be {words}{hint}"
 
 
 def _form(option: dict, root: dict) -> str:
@@ -159,6 +177,10 @@ def _form(option: dict, root: dict) -> str:
         return str(option["const"])
     if option == {"type": "null"}:
         return "null"
+    if set(option) <= {"type", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"} and "type" in option:
+        bounds = {"minimum": ">=", "maximum": "<=", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}
+        limits = [f"{sign} {option[key]}" for key, sign in bounds.items() if key in option]
+        return _TYPES.get(option["type"], str(option["type"])) + (f" {' and '.join(limits)}" if limits else "")
     if "properties" in option:
         required = list(option.get("required", []))
         optional = [key for key in option["properties"] if key not in required]
@@ -255,8 +277,9 @@ def _check_renamed(config: dict) -> None:
 def validate(config: dict) -> dict:
     """Validate a fully filled config against the schema; raise ConfigError naming the key."""
     _check_finite(config)
+    config_checks.check_integers(config)
     _check_renamed(config)
-    _raise_errors(schema(), config)
+    _raise_errors(_validator(None), config)
     _check_semantics(config)
     return config
 
@@ -266,12 +289,26 @@ def validate_part(value: Any, ref: str, where: str) -> Any:
     against the schema node ``ref`` (``#/$defs/train/properties/finetune``), for the callers that receive a
     part without the whole config; raise ConfigError naming the key, as :func:`validate` does."""
     _check_finite(value, where)
-    _raise_errors({"$defs": schema()["$defs"], "$ref": ref}, value, tuple(where.split(".")))
+    _raise_errors(_validator(ref), value, tuple(where.split(".")))
     return value
 
 
-def _raise_errors(root: dict, value: Any, prefix: tuple[str, ...] = ()) -> None:
-    validator = jsonschema.Draft202012Validator(root)
+#: JSON Schema's validator with exact integers: an integer key refuses 10.0 (the standard counts it an integer, and the
+#: stages after the check would meet a float where they count)
+_VALIDATOR = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
+        "integer", lambda _checker, value: isinstance(value, int) and not isinstance(value, bool)))
+
+
+@functools.cache
+def _validator(ref: str | None) -> jsonschema.Draft202012Validator:
+    """The validator of the whole schema (``ref`` None) or of its node ``ref``, built once."""
+    return _VALIDATOR(schema() if ref is None else {"$defs": schema()["$defs"], "$ref": ref})
+
+
+def _raise_errors(validator: jsonschema.Draft202012Validator, value: Any, prefix: tuple[str, ...] = ()) -> None:
+    root = validator.schema
     errors = sorted((leaf for e in validator.iter_errors(value) for leaf in _leaves(e)),
                     key=lambda e: [str(p) for p in e.absolute_path])
     lines = [line for line in (_describe(e, root, prefix=prefix) for e in errors) if line]
@@ -301,6 +338,8 @@ def _check_semantics(config: dict) -> None:
         scene.check(cfg)
         property_sensitivity.values(name, cfg)
         _check_edge_features(name, cfg["model"])
+        config_checks.check_section(name, scene, cfg, schema()["$defs"]["dem_scene"]["properties"]["n_sims"]["maximum"])
+    config_checks.check_seeds(config, [*scenes.names(), *BENCHMARKS])
     for name in BENCHMARKS:
         bench = config[name]
         _check_edge_features(name, bench["model"])
@@ -319,12 +358,12 @@ def _check_edge_features(name: str, model: dict) -> None:
 
 def _check_size(name: str, scene, cfg: dict, limit: int) -> None:
     """Refuse a section whose estimated particle count (from its geometry and radii) exceeds ``limit``."""
-    n = scene.particle_estimate(cfg)
+    n, keys = config_checks.keys_read(scene.particle_estimate, cfg, name)
     if n > limit:
         mib = n * cfg["frames"] * scene.dim * 2 * 8 / 2 ** 20     # positions and velocities, float64
         raise ConfigError(
             f"config section '{name}': radius {cfg['radius']} gives about {n:,} particles per sim (estimated from the "
-            f"geometry and radii; {mib:,.0f} MiB of positions and velocities per recorded sim), above "
+            f"geometry and radii: {keys}; {mib:,.0f} MiB of positions and velocities per recorded sim), above "
             f"'limits.particles' = {limit:,}; raise that key to run it anyway, or use larger radii")
 
 

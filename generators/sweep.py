@@ -16,8 +16,9 @@ from generators import scenes
 SPLITS = ("train", "valid", "test")
 
 
-def split_labels(n: int, fractions: list[float], seed: int) -> list[str]:
-    """Seeded 7:2:1-style assignment; every non-empty fraction gets at least one sim when n >= 3."""
+def split_counts(n: int, fractions: list[float]) -> list[int]:
+    """The number of sims of each split (train, valid, test) of ``n``: every non-empty fraction gets at least one
+    sim when n >= 3, the rest rounded (the config's check of the split uses this rule too)."""
     counts = [int(round(f * n)) for f in fractions]
     for i in range(3):
         if n >= 3 and fractions[i] > 0 and counts[i] == 0:
@@ -26,6 +27,12 @@ def split_labels(n: int, fractions: list[float], seed: int) -> list[str]:
         counts[int(np.argmax(counts))] -= 1
     while sum(counts) < n:
         counts[0] += 1
+    return counts
+
+
+def split_labels(n: int, fractions: list[float], seed: int) -> list[str]:
+    """Seeded 7:2:1-style assignment of :func:`split_counts`."""
+    counts = split_counts(n, fractions)
     labels = np.array(sum(([s] * c for s, c in zip(SPLITS, counts, strict=True)), []))
     order = np.random.default_rng([seed, 7]).permutation(n)
     return list(labels[np.argsort(order)])

@@ -1,7 +1,7 @@
 import pytest
 import yaml
 
-from generators import config, scenes
+from generators import config, scenes, sweep
 
 
 def test_default_config_is_valid_and_scales_fill_sizes():
@@ -325,3 +325,140 @@ def test_no_default_is_repeated_in_every_scene_yaml_and_the_base_reaches_every_s
                 assert key in resolved, f"{name} at scale {scale}: base key {'.'.join(map(str, key))} missing"
                 if path not in paths and key not in paths:
                     assert resolved[key] == value, f"{name} at scale {scale}: {'.'.join(map(str, key))}"
+
+
+# ---- exact types and the cross-key checks (generators/config_checks.py) --------------------------------------
+
+
+@pytest.mark.parametrize("override, key, words", [
+    ({"slide": {"n_sims": 10.0}}, "slide.n_sims", "it must be an integer (10, not 10.0)"),
+    ({"slide": {"frames": 20.0}}, "slide.frames", "it must be an integer (20, not 20.0)"),
+    ({"slide": {"train": {"valid_sims": 3.0}}}, "slide.train.valid_sims", "it must be an integer or null (3, not 3.0)"),
+    ({"crosscheck": {"sims": 4.0}}, "crosscheck.sims", "an integer >= 2"),
+    ({"slide_samer": {"sims": {"train": 6.0}}}, "slide_samer.sims.train", "an integer"),
+])
+def test_a_float_for_an_integer_key_is_refused_naming_the_key(override, key, words):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert f"'{key}' = " in str(err.value) and words in str(err.value)
+
+
+def test_integers_stay_accepted_where_numbers_are_allowed():
+    cfg = config.load({"scale": "ci", "slide": {"young": 1000000000, "frame_interval": 1}})
+    assert cfg["slide"]["young"] == 1000000000 and cfg["slide"]["frame_interval"] == 1
+
+
+@pytest.mark.parametrize("override, keys, allowed", [
+    ({"slide": {"frames": 6}}, ["slide.frames", "slide.model.history"], "at least 7"),
+    ({"slide": {"model": {"history": 20}}}, ["slide.frames", "slide.model.history"], "at least 21"),
+    ({"slide": {"model": {"bundle": 15}}}, ["slide.model.bundle"], "at least 21"),
+    ({"slide": {"evaluate": {"frames": [15, 30]}}}, ["slide.evaluate.frames", "slide.frames"], "taus among 1..14"),
+])
+def test_the_history_and_the_evaluated_frames_must_lie_in_the_recorded_window(override, keys, allowed):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert all(f"'{key}' = " in str(err.value) for key in keys) and allowed in str(err.value)
+
+
+def test_evaluated_frames_partly_in_the_window_are_kept():
+    """The ci meteorite lists Table 2's taus (5..30) and predicts 6 frames: the Acc averages tau 5."""
+    cfg = config.load({"scale": "ci"})["meteorite"]
+    assert cfg["frames"] - cfg["model"]["history"] == 6 and cfg["evaluate"]["frames"] == [5, 10, 15, 20, 30]
+
+
+@pytest.mark.parametrize("override, keys, empty", [
+    ({"slide": {"split": [1.0, 0.0, 0.0]}}, ["slide.split"], "valid and test split empty"),
+    ({"slide": {"split": [0.5, 0.5, 0.0]}}, ["slide.split"], "test split empty"),
+    ({"slide": {"n_sims": 2}}, ["slide.split", "slide.n_sims"], "test split empty"),
+    ({"collapse": {"sweep": {"n_aspects": 1}}}, ["collapse.sweep.n_aspects", "collapse.sweep.friction"],
+     "split empty"),
+    ({"shear": {"sweep": {"n_young": 1, "n_normal_stress": 1}}}, ["shear.sweep.n_young", "shear.sweep.displacements"],
+     "split empty"),
+])
+def test_a_split_that_leaves_a_split_empty_is_refused_naming_the_sweep_size(override, keys, empty):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert all(f"'{key}' = " in str(err.value) for key in keys) and empty in str(err.value)
+
+
+def test_the_split_check_follows_the_sweep_rule_at_its_smallest():
+    cfg = config.load({"scale": "ci", "slide": {"n_sims": 3}})["slide"]
+    assert sweep.split_counts(3, cfg["split"]) == [1, 1, 1]
+    assert sorted(sweep.build("slide", cfg)["split"]) == ["test", "train", "valid"]
+
+
+def test_a_sweep_larger_than_n_sims_allows_is_refused():
+    with pytest.raises(config.ConfigError, match=r"1,000,000 sims \('meteorite.sweep.n_angles' = 1000"):
+        config.load({"scale": "ci", "meteorite": {"sweep": {"n_angles": 1000, "n_speeds": 1000}}})
+
+
+@pytest.mark.parametrize("override, key", [
+    ({"slide": {"frame_interval": 1.0e6}}, "slide.frame_interval"),
+    ({"slide": {"dt": 1.0e-12}}, "slide.dt"),
+    ({"slide": {"dt_safety": 1.0e-9}}, "slide.dt_safety"),
+    ({"slide": {"stability": {"dem_dt_factors": [1.0e-9]}}}, "slide.stability.dem_dt_factors"),
+    ({"slide": {"performance": {"dem": {"dt_5pct": {"dt_safety": 1.0e-9}}}}},
+     "slide.performance.dem.dt_5pct.dt_safety"),
+    ({"slide": {"performance": {"dem": {"x": {"stiffness_factor": 1.0e20}}}}},
+     "slide.performance.dem.x.stiffness_factor"),
+    ({"shear": {"sweep": {"displacements": [1.0e6]}}}, "shear.sweep.displacements"),
+    ({"shear": {"load_time": 1.0e9}}, "shear.load_time"),
+])
+def test_a_run_whose_steps_overflow_lammps_counts_is_refused(override, key):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert f"'{key}' = " in str(err.value) and "32-bit" in str(err.value)
+
+
+def test_a_settling_whose_steps_overflow_is_refused():
+    with pytest.raises(config.ConfigError, match=r"'slide.settle_time' = 1000000000.0 and 'slide.settle_check'.*32"):
+        config.load({"scale": "ci", "slide": {"settle_time": 1.0e9}})
+
+
+def test_an_explicit_step_above_the_stable_limit_is_refused_when_read():
+    with pytest.raises(config.ConfigError, match=r"'slide.dt' = 1.0 exceeds the stable limit"):
+        config.load({"scale": "ci", "slide": {"dt": 1.0}})
+
+
+def test_the_step_bound_matches_the_decks_at_its_edge():
+    """The largest frame interval the check lets through gives a recorded run LAMMPS counts in 32 bits."""
+    from generators.config_checks import MAX_STEPS
+    from generators.lammps import deck
+
+    cfg = config.load({"scale": "ci", "slide": {"frame_interval": 3000.0}})["slide"]
+    scene, row = scenes.get("slide"), sweep.build("slide", cfg).iloc[0].to_dict()
+    params = scene.packings(cfg)[0]
+    setup = scene.simulate_setup(row, scene.settle_setup(params).particles)
+    runs = [int(line.split()[1]) for line in deck.record_deck(setup).splitlines() if line.startswith("run ")]
+    assert 10 ** 9 < max(runs) <= MAX_STEPS
+    with pytest.raises(config.ConfigError, match="32-bit"):
+        config.load({"scale": "ci", "slide": {"frame_interval": 9000.0}})
+
+
+@pytest.mark.parametrize("value", [1.0, 0.99999, 0.01])
+def test_a_restitution_lammps_damping_cannot_reach_is_refused(value):
+    with pytest.raises(config.ConfigError, match=r"'slide.restitution' = .*Tsuji"):
+        config.load({"scale": "ci", "slide": {"restitution": value}})
+
+
+@pytest.mark.parametrize("override, keys", [
+    ({"slide": {"seed": 2 ** 32}}, ["slide.seed"]),
+    ({"slide": {"train": {"seed": 2 ** 32}}}, ["slide.train.seed"]),
+    ({"slide": {"stability": {"seed": -1}}}, ["slide.stability.seed"]),
+    ({"shear": {"shear_stress_readout": {"seed": 2 ** 40}}}, ["shear.shear_stress_readout.seed"]),
+    ({"seeds": 3, "slide_small": {"train": {"seed": 2 ** 32 - 2}}}, ["slide_small.train.seed", "seeds"]),
+])
+def test_seeds_beyond_numpys_range_are_refused_by_key(override, keys):
+    with pytest.raises(config.ConfigError) as err:
+        config.load({"scale": "ci", **override})
+    assert all(f"'{key}' = " in str(err.value) for key in keys)
+
+
+def test_an_integer_beyond_64_bits_is_refused_by_key():
+    with pytest.raises(config.ConfigError, match=r"'meteorite.sweep.speed\[1\]' = 10{30}.*within 64 bits"):
+        config.load({"scale": "ci", "meteorite": {"sweep": {"speed": [60.0, 10 ** 30]}}})
+
+
+def test_the_particle_limit_names_the_geometry_keys():
+    with pytest.raises(config.ConfigError, match=r"'slide.domain' = \[80000000000000.0, 80.0\].*limits.particles"):
+        config.load({"scale": "ci", "slide": {"domain": [8.0e13, 80.0]}})

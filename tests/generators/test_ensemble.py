@@ -157,7 +157,7 @@ def test_a_member_replays_the_sim_to_its_frame_and_differs_after_it(engine_name,
 def test_a_members_h5md_file_records_the_member_and_starts_with_the_sims_stored_frames(tmp_path):
     """Through the simulate and convert stages (a ci slide sim in LAMMPS): the member's file holds its index, its
     frame K - 1, the size in radii and the deviations used, and its first K stored frames are the sim's."""
-    cfg = config.load({"scale": "ci", "slide": {"n_sims": 1, "frames": 8, "record_start": 0.5,
+    cfg = config.load({"scale": "ci", "slide": {"n_sims": 3, "frames": 8, "record_start": 0.5,
                                                 "settle_time": 4.0}})["slide"]
     engine.prepare(slide.SCENE, "lammps", slide.SCENE.packings(cfg)[0], tmp_path / "packing")
     row = sweep.build("slide", cfg).iloc[0].to_dict()

@@ -9,7 +9,7 @@ pytestmark = pytest.mark.engine
 
 
 def test_time_steps_above_the_limit_blow_up_named_and_leave_nothing(tmp_path):
-    cfg = config.load({"scale": "ci", "slide": {"n_sims": 3, "settle_time": 4.0, "frames": 5,
+    cfg = config.load({"scale": "ci", "slide": {"n_sims": 3, "settle_time": 4.0, "frames": 5, "model": {"history": 2},
                                                 "frame_interval": 0.1, "record_start": 0.3}})["slide"]
     row = sweep.build("slide", cfg).to_dict("records")[0]
     engine.prepare(slide.SCENE, "lammps", slide.SCENE.packing_params(cfg, 0), tmp_path / "packing")

@@ -84,7 +84,8 @@ def test_a_shear_job_opens_no_port_while_it_runs(tmp_path):
     second), and the job's log holds no auth cookie."""
     from generators import config, engine, sweep
     from generators.scenes import shear
-    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 3}})["shear"]
+    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 3,
+                                                   "model": {"history": 2}}})["shear"]
     before, seen, done = listeners(), set(), threading.Event()
 
     def poll():

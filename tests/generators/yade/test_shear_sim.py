@@ -11,7 +11,8 @@ pytestmark = pytest.mark.engine
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 6}})["shear"]
+    cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008, "frames": 6,
+                                                   "model": {"history": 2}}})["shear"]
     root = tmp_path_factory.mktemp("shear")
     engine.prepare(shear.SCENE, "yade", shear.SCENE.packings(cfg)[0], root / "packing")
     table = sweep.build("shear", cfg)
