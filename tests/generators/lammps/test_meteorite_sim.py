@@ -13,7 +13,8 @@ pytestmark = pytest.mark.engine
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    cfg = config.load({"scale": "ci", "meteorite": {"bed_depth": 30.0, "frames": 8}})["meteorite"]
+    cfg = config.load({"scale": "ci", "meteorite": {"bed_depth": 30.0, "frames": 8,
+                                                    "evaluate": {"frames": None}}})["meteorite"]
     root = tmp_path_factory.mktemp("meteorite")
     engine.prepare(meteorite.SCENE, "lammps", meteorite.SCENE.packings(cfg)[0], root / "packing")
     row = sweep.build("meteorite", cfg).iloc[0].to_dict()          # 30 degrees, 60 m/s
