@@ -243,15 +243,11 @@ def defaults() -> dict:
 
 
 def _check_finite(node: Any, where: str = "") -> None:
-    """Refuse NaN and infinities anywhere (they compare false against every schema bound, so pass it)."""
-    if isinstance(node, dict):
-        for key, value in node.items():
-            _check_finite(value, f"{where}.{key}" if where else str(key))
-    elif isinstance(node, list):
-        for i, value in enumerate(node):
-            _check_finite(value, f"{where}[{i}]")
-    elif isinstance(node, float) and not math.isfinite(node):
-        raise ConfigError(f"config key {where!r} = {node!r} is not allowed: every number must be finite")
+    """Refuse NaN and infinities anywhere (they compare false against every schema bound, so pass it); ``where``:
+    the key path of ``node``."""
+    for key, value in config_checks.leaves(node, where):
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"config key {key!r} = {value!r} is not allowed: every number must be finite")
 
 
 #: config keys of a scene's section that were renamed, as (the path below the section, old name, new name): a config

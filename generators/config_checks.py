@@ -20,6 +20,7 @@ Each refusal is a ConfigError naming the keys involved and what is allowed.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 from generators import contact, sweep
@@ -197,14 +198,21 @@ def check_seeds(config: dict, sections: list[str]) -> None:
                               f"{config['seeds']} give training seeds up to {last}; allowed: seeds up to {MAX_SEED}")
 
 
-def check_integers(node: Any, where: str = "") -> None:
-    """Refuse an integer beyond 64 bits anywhere (numpy and HDF5 hold none): a huge number is written as a float."""
+def leaves(node: Any, where: str = "") -> Iterator[tuple[str, Any]]:
+    """Every value of a config tree that is neither a mapping nor a list, with its dotted key (``a.b[2]``)."""
     if isinstance(node, dict):
         for key, value in node.items():
-            check_integers(value, f"{where}.{key}" if where else str(key))
+            yield from leaves(value, f"{where}.{key}" if where else str(key))
     elif isinstance(node, list):
         for i, value in enumerate(node):
-            check_integers(value, f"{where}[{i}]")
-    elif isinstance(node, int) and not isinstance(node, bool) and abs(node) > 2 ** 63 - 1:
-        raise ConfigError(f"config key {where!r} = {node} is not allowed: an integer must lie within 64 bits "
-                          f"(|n| <= {2 ** 63 - 1}); write a huge number as a float, e.g. {float(node):.6g}")
+            yield from leaves(value, f"{where}[{i}]")
+    else:
+        yield where, node
+
+
+def check_integers(node: Any, where: str = "") -> None:
+    """Refuse an integer beyond 64 bits anywhere (numpy and HDF5 hold none): a huge number is written as a float."""
+    for key, value in leaves(node, where):
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2 ** 63 - 1:
+            raise ConfigError(f"config key {key!r} = {value} is not allowed: an integer must lie within 64 bits "
+                              f"(|n| <= {2 ** 63 - 1}); write a huge number as a float, e.g. {float(value):.6g}")

@@ -14,6 +14,16 @@ def make_locks(workdir):
         (workdir / ".snakemake" / "locks" / name).write_text("results/x.csv\n")
 
 
+def locks_kept_while_running(proc: subprocess.Popen, workdir) -> None:
+    """Once ``proc`` is seen as a Snakemake working in ``workdir`` (within 10 s), its locks are kept."""
+    deadline = time.monotonic() + 10
+    while proc.pid not in locks.other_snakemake_in(workdir):
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    assert locks.remove_stale_locks(workdir) == []
+    assert len(list((workdir / ".snakemake" / "locks").iterdir())) == 2
+
+
 def test_locks_of_a_killed_run_are_removed(tmp_path):
     make_locks(tmp_path)
     removed = locks.remove_stale_locks(tmp_path)
@@ -30,12 +40,7 @@ def test_locks_of_a_running_snakemake_in_the_folder_are_kept(tmp_path):
     fake.chmod(0o755)
     proc = subprocess.Popen([str(fake)], cwd=tmp_path)
     try:
-        deadline = time.monotonic() + 10
-        while proc.pid not in locks.other_snakemake_in(tmp_path):
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
-        assert locks.remove_stale_locks(tmp_path) == []
-        assert len(list((tmp_path / ".snakemake" / "locks").iterdir())) == 2
+        locks_kept_while_running(proc, tmp_path)
         assert locks.other_snakemake_in(tmp_path / "bin") == []      # another folder is not this one
     finally:
         proc.kill()
@@ -68,12 +73,7 @@ def test_locks_of_a_running_python_m_snakemake_are_kept(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(tmp_path / "mods")}
     proc = subprocess.Popen([sys.executable, "-m", "snakemake"], cwd=tmp_path, env=env)
     try:
-        deadline = time.monotonic() + 10
-        while proc.pid not in locks.other_snakemake_in(tmp_path):
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
-        assert locks.remove_stale_locks(tmp_path) == []
-        assert len(list((tmp_path / ".snakemake" / "locks").iterdir())) == 2
+        locks_kept_while_running(proc, tmp_path)
     finally:
         proc.kill()
         proc.wait()
