@@ -24,6 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from generators import hdf5_guard
 from generators.atomic import atomic_path, h5_file
 
 H5MD_VERSION = (1, 1)
@@ -102,11 +103,9 @@ class Trajectory:
                 raise H5MDError(f"{where}: {name} is missing")
             if np.shape(arr) != shape:
                 raise H5MDError(f"{where}: {name} has shape {np.shape(arr)}, expected {shape}")
-        bad = ~np.isfinite(pos)
-        if bad.any() and not allow_nonfinite:
-            frame, particle, _ = np.argwhere(bad)[0]
-            raise H5MDError(f"{where}: non-finite position at frame {frame}, particle {particle}")
-        for name in ("time", "radius", "mass"):
+        if not allow_nonfinite:
+            _check_finite_positions(pos, where)
+        for name in ("time", "radius", "mass", "box_lower", "box_upper"):
             if not np.all(np.isfinite(getattr(self, name))):
                 raise H5MDError(f"{where}: non-finite values in {name}")
         if t > 1 and not np.all(np.diff(np.asarray(self.time)) > 0):
@@ -134,6 +133,17 @@ class Trajectory:
         return self
 
 
+def _check_finite_positions(pos: np.ndarray, where: str) -> None:
+    """Refuse the first non-finite position by frame and particle, a block of frames at a time (no mask of the
+    whole array)."""
+    block = max(1, 2**20 // max(1, pos[0].size))
+    for start in range(0, pos.shape[0], block):
+        bad = ~np.isfinite(pos[start:start + block])
+        if bad.any():
+            frame, particle, _ = np.unravel_index(int(np.argmax(bad)), bad.shape)
+            raise H5MDError(f"{where}: non-finite position at frame {start + frame}, particle {particle}")
+
+
 def _attr_value(value):
     if isinstance(value, (bool, int, float, str, np.integer, np.floating)):
         return value
@@ -148,7 +158,7 @@ def _from_attr(value):
     if isinstance(value, str) and (value[:1] in "[{" or value == "null"):
         try:
             return json.loads(value)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, RecursionError):     # not JSON, or nested past the interpreter's depth
             return value
     if isinstance(value, np.generic):
         return value.item()
@@ -235,115 +245,151 @@ def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_no
     return path
 
 
-def _need(f: h5py.File, key: str, path: Path):
-    if key not in f:
-        raise H5MDError(f"{path}: not a graphdem H5MD file: missing {key}")
-    return f[key]
-
-
-#: the most an array may declare, uncompressed, per byte of the file (a compressed file can declare far more
-#: than it holds); every file may declare MIN_DECLARED_BYTES
-DECLARED_PER_FILE_BYTE, MIN_DECLARED_BYTES = 200, 256 * 2 ** 20
+#: what a file may make its reader allocate (every dataset and attribute read, decompressed, plus one chunk of each
+#: chunked dataset): DECLARED_PER_FILE_BYTE bytes per byte of the file (a compressed file can declare far more than
+#: it holds), and MIN_DECLARED_BYTES whatever its size (a file of up to 10 MiB may make its reader allocate 256 MiB)
+DECLARED_PER_FILE_BYTE, MIN_DECLARED_BYTES = 25, 256 * 2 ** 20
 REQUIRED = ("particles/all/position/value", "particles/all/position/time", "particles/all/position/step",
             "particles/all/species", "particles/all/radius", "particles/all/mass", "particles/all/kinematic")
 OPTIONAL = ("particles/all/box/lower", "particles/all/properties")
 EDGES = "particles/all/box/edges"
 
 
-def _dataset(f: h5py.File, key: str, path: Path, limit: int) -> h5py.Dataset:
-    """The dataset ``key``, checked to be one and to declare at most ``limit`` bytes before anything is read
-    (dtypes and shapes are checked by Trajectory.validate once read)."""
-    node = _need(f, key, path)
-    if not isinstance(node, h5py.Dataset):
-        raise H5MDError(f"{path}: {key} must be a dataset, found a {type(node).__name__}")
-    declared = int(np.prod(node.shape, dtype=np.float64)) * node.dtype.itemsize
-    if declared > limit:
-        raise H5MDError(f"{path}: {key} declares shape {node.shape} ({declared / 2**20:,.0f} MiB), more than "
-                        f"{limit / 2**20:,.0f} MiB for a file of {path.stat().st_size / 2**20:,.2f} MiB; refused "
-                        f"before reading")
+def _group(f: h5py.File, key: str, path: Path, required: bool = True) -> h5py.Group | None:
+    """The group at ``key``, reached inside the file (hdf5_guard.node); missing: an error when ``required``."""
+    node = hdf5_guard.node(f, key, path)
+    if node is None and required:
+        raise H5MDError(f"{path}: not a graphdem H5MD file: missing {key}")
+    if node is not None and not isinstance(node, h5py.Group):
+        raise H5MDError(f"{path}: {key} must be a group, found a {type(node).__name__}")
     return node
 
 
-def _edges_key(f: h5py.File) -> str:
+def _dataset(f: h5py.File, key: str, path: Path, budget: hdf5_guard.Budget) -> h5py.Dataset:
+    """The dataset ``key``, reached and stored inside the file, numeric, its decompressed size taken from the
+    file's budget and its chunks checked before anything is read (hdf5_guard.dataset; shapes are checked by
+    Trajectory.validate once read)."""
+    node = hdf5_guard.dataset(f, key, path, budget)
+    if node is None:
+        raise H5MDError(f"{path}: not a graphdem H5MD file: missing {key}")
+    return node
+
+
+def _edges_key(f: h5py.File, path: Path) -> str:
     """Where the box edges are: ``edges/value`` of the time-dependent element (files with the units module), or
     ``edges`` itself, the fixed dataset [D] of older files."""
-    return f"{EDGES}/value" if isinstance(f.get(EDGES), h5py.Group) else EDGES
+    return f"{EDGES}/value" if isinstance(hdf5_guard.node(f, EDGES, path), h5py.Group) else EDGES
 
 
 def _fixed_edges(edges: np.ndarray, key: str, frames_shape: tuple[int, ...], path: Path) -> np.ndarray:
-    """The box edges [D] from what ``key`` holds: a fixed dataset as it is (its shape is checked by
-    Trajectory.validate), or a time-dependent value [T, D] whose rows, one per frame, must all be equal."""
-    if key == EDGES:
-        return edges
-    if edges.dtype.kind not in "fiu" or edges.ndim != 2 or edges.shape[:1] != frames_shape or not edges.shape[0]:
-        raise H5MDError(f"{path}: {key} must hold numbers of shape [T, D], one row per frame (position/time has "
-                        f"shape {frames_shape}), got {edges.dtype} {edges.shape}")
-    if not np.array_equal(edges, np.broadcast_to(edges[0], edges.shape), equal_nan=True):
-        raise H5MDError(f"{path}: {key} changes over time; a graphdem trajectory has a fixed box")
-    return edges[0]
+    """The box edges [D] from what ``key`` holds: a fixed dataset as it is, or a time-dependent value [T, D] whose
+    rows, one per frame, must all be equal; every edge a finite positive length."""
+    if key != EDGES:
+        if edges.ndim != 2 or edges.shape[:1] != frames_shape or not edges.shape[0]:
+            raise H5MDError(f"{path}: {key} must hold numbers of shape [T, D], one row per frame (position/time "
+                            f"has shape {frames_shape}), got {edges.dtype} {edges.shape}")
+        if not np.array_equal(edges, np.broadcast_to(edges[0], edges.shape), equal_nan=True):
+            raise H5MDError(f"{path}: {key} changes over time; a graphdem trajectory has a fixed box")
+        edges = edges[0]
+    if edges.dtype.kind == "b" or not (np.all(np.isfinite(edges)) and np.all(edges > 0)):
+        raise H5MDError(f"{path}: {key} must hold finite positive box edges (m), got "
+                        f"{np.atleast_1d(edges).tolist()[:6]}")
+    return edges
 
 
-def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
-    """Read and validate an H5MD file; raise H5MDError naming the file, the field and what was expected.
+def _box(f: h5py.File, path: Path, budget: hdf5_guard.Budget, frames_shape) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The box's lower and upper corners [D] and its boundary per axis."""
+    box = _group(f, "particles/all/box", path)
+    key = _edges_key(f, path)
+    edges = _fixed_edges(_dataset(f, key, path, budget)[()], key, frames_shape, path)
+    lower_set = hdf5_guard.dataset(f, "particles/all/box/lower", path, budget)
+    lower = lower_set[()] if lower_set is not None else np.zeros_like(edges)
+    if lower.dtype.kind == "b" or not np.all(np.isfinite(lower)):
+        raise H5MDError(f"{path}: particles/all/box/lower must hold a finite corner (m), got "
+                        f"{np.atleast_1d(lower).tolist()[:6]}")
+    boundary = hdf5_guard.attribute(box, "boundary", "particles/all/box", path, budget, ())
+    return lower, lower + edges, tuple(_text(b) for b in np.atleast_1d(boundary))
 
-    Every dataset is checked to be one and its declared size bounded before it is read, so a small file that
-    declares a huge array is refused without allocating it; dtypes and shapes are checked by
-    Trajectory.validate, the one check for files read and written.
-    """
-    path = Path(path)
+
+def _text(value) -> str:
+    return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+
+
+def _properties(f: h5py.File, path: Path, budget: hdf5_guard.Budget) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """The per-particle properties [N, F] and their names, or (None, ()) when the file has none."""
+    props = hdf5_guard.dataset(f, "particles/all/properties", path, budget)
+    if props is None:
+        return None, ()
+    names = hdf5_guard.attribute(props, "names", "particles/all/properties", path, budget, ())
+    return props[()], tuple(_text(n) for n in np.atleast_1d(names))
+
+
+def _observables(f: h5py.File, path: Path, budget: hdf5_guard.Budget, frames_shape, sel) -> dict[str, np.ndarray]:
+    """Every observable's value, one per frame, at the frames ``sel``."""
+    group = _group(f, "observables", path, required=False)
+    observables = {}
+    for name in (group.keys() if group is not None else ()):
+        key = f"observables/{name}/value"
+        element = hdf5_guard.node(f, f"observables/{name}", path)
+        value = hdf5_guard.dataset(f, key, path, budget) if isinstance(element, h5py.Group) else None
+        if value is None or value.shape != frames_shape:
+            raise H5MDError(f"{path}: {key} must be a numeric dataset of shape {frames_shape}, one value per frame")
+        observables[name] = value[()][sel]
+    return observables
+
+
+def _parameters(f: h5py.File, path: Path, budget: hdf5_guard.Budget) -> dict:
+    """The attributes of /parameters, JSON text decoded; {} when the file has none."""
+    group = hdf5_guard.node(f, "parameters", path)
+    if not isinstance(group, h5py.Group):
+        return {}
+    return {k: _from_attr(hdf5_guard.attribute(group, k, "parameters", path, budget)) for k in group.attrs}
+
+
+def _open(path: Path) -> tuple[h5py.File, hdf5_guard.Budget]:
+    """The file opened read-only and the budget of what it may make its reader allocate."""
     if not path.is_file():
         raise H5MDError(f"{path}: no such file")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
         raise H5MDError(f"{path}: not a readable HDF5 file (corrupt or truncated?): {exc}") from exc
-    limit = max(MIN_DECLARED_BYTES, DECLARED_PER_FILE_BYTE * path.stat().st_size)
+    return f, hdf5_guard.Budget(path, max(MIN_DECLARED_BYTES, DECLARED_PER_FILE_BYTE * path.stat().st_size))
+
+
+def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = False) -> Trajectory:
+    """Read and validate an H5MD file; raise H5MDError naming the file, the field and what was expected.
+
+    Every object is reached only through links inside the file, every dataset is checked to be stored in it and
+    numeric, and its decompressed size taken from the file's budget before it is read (:mod:`generators.hdf5_guard`),
+    so a small file that declares or inflates to a huge array, or points elsewhere, is refused without touching it;
+    shapes are checked by Trajectory.validate, the one check for files read and written.
+    """
+    path = Path(path)
+    f, budget = _open(path)
+    sel = frames if frames is not None else slice(None)
     try:
         with f:
-            version = tuple(int(v) for v in np.atleast_1d(_need(f, "h5md", path).attrs.get("version", ())))
+            version_at = _group(f, "h5md", path)
+            version = tuple(int(v) for v in np.atleast_1d(hdf5_guard.attribute(version_at, "version", "h5md", path,
+                                                                                budget, ())))
             if version[:1] != (1,):
                 raise H5MDError(f"{path}: unsupported H5MD version {version}, expected 1.x")
-            sel = frames if frames is not None else slice(None)
-            box = _need(f, "particles/all/box", path)
-            if not isinstance(box, h5py.Group):
-                raise H5MDError(f"{path}: particles/all/box must be a group")
-            edges_key = _edges_key(f)
-            sets = {k: _dataset(f, k, path, limit) for k in (*REQUIRED, edges_key, *(k for k in OPTIONAL if k in f))}
+            sets = {k: _dataset(f, k, path, budget) for k in REQUIRED}
             frames_shape = sets["particles/all/position/time"].shape
-            edges = _fixed_edges(sets[edges_key][()], edges_key, frames_shape, path)
-            lower = sets["particles/all/box/lower"][()] if "particles/all/box/lower" in sets else np.zeros_like(edges)
-            props = names = None
-            if "particles/all/properties" in sets:
-                props = sets["particles/all/properties"][()]
-                names = tuple(n.decode() if isinstance(n, bytes) else str(n)
-                              for n in np.atleast_1d(sets["particles/all/properties"].attrs.get("names", ())))
-            observables = {}
-            if "observables" in f:
-                for name, grp in f["observables"].items():
-                    value = grp.get("value") if isinstance(grp, h5py.Group) else None
-                    numeric = isinstance(value, h5py.Dataset) and value.dtype.kind in "fiu"
-                    if not numeric or value.shape != frames_shape:
-                        raise H5MDError(f"{path}: observables/{name}/value must be a numeric dataset of shape "
-                                        f"{frames_shape}, one value per frame")
-                    observables[name] = value[()][sel]
+            lower, upper, boundary = _box(f, path, budget, frames_shape)
+            props, names = _properties(f, path, budget)
             traj = Trajectory(
-                position=sets["particles/all/position/value"][sel],
-                time=sets["particles/all/position/time"][sel],
-                step=sets["particles/all/position/step"][sel],
-                species=sets["particles/all/species"][()],
-                radius=sets["particles/all/radius"][()],
-                mass=sets["particles/all/mass"][()],
-                kinematic=sets["particles/all/kinematic"][()],
-                box_lower=lower, box_upper=lower + edges,
-                boundary=tuple(b.decode() if isinstance(b, bytes) else str(b)
-                               for b in np.atleast_1d(box.attrs.get("boundary", ()))),
-                properties=props, property_names=names or (),
-                parameters={k: _from_attr(v) for k, v in f["parameters"].attrs.items()}
-                if isinstance(f.get("parameters"), h5py.Group) else {},
-                observables=observables,
-            )
+                position=sets["particles/all/position/value"][sel], time=sets["particles/all/position/time"][sel],
+                step=sets["particles/all/position/step"][sel], species=sets["particles/all/species"][()],
+                radius=sets["particles/all/radius"][()], mass=sets["particles/all/mass"][()],
+                kinematic=sets["particles/all/kinematic"][()], box_lower=lower, box_upper=upper, boundary=boundary,
+                properties=props, property_names=names, parameters=_parameters(f, path, budget),
+                observables=_observables(f, path, budget, frames_shape, sel))
     except H5MDError:
         raise
+    except hdf5_guard.Refused as exc:
+        raise H5MDError(str(exc)) from exc
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
         raise H5MDError(f"{path}: unreadable H5MD content (corrupt?): {exc}") from exc
     return traj.validate(str(path), allow_nonfinite)

@@ -229,3 +229,56 @@ def test_a_box_that_is_not_one_fixed_box_is_refused(tmp_path, edit, message):
         edit(f)
     with pytest.raises(h5md.H5MDError, match=message):
         h5md.read(path)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda f: f["particles/all/box/edges/value"].__setitem__(Ellipsis, [np.inf, 10.0, 10.0]),
+     "edges/value must hold finite positive box edges"),
+    (lambda f: f["particles/all/box/edges/value"].__setitem__(Ellipsis, [0.0, 10.0, 10.0]),
+     "edges/value must hold finite positive box edges"),
+    (lambda f: f["particles/all/box/lower"].__setitem__(1, np.nan), "box/lower must hold a finite corner"),
+    (lambda f: f["particles/all/radius"].__setitem__(0, np.inf), "non-finite values in radius"),
+])
+def test_non_finite_or_empty_boxes_and_geometry_are_refused_by_name(tmp_path, edit, message):
+    path = h5md.write(tmp_path / "sim.h5", make_box_traj(3))
+    with h5py.File(path, "a") as f:
+        edit(f)
+    with pytest.raises(h5md.H5MDError, match=f"{path}: .*{message}"):
+        h5md.read(path)
+
+
+def test_a_box_with_non_finite_corners_is_not_written(tmp_path):
+    traj = make_box_traj(2)
+    traj.box_upper = np.array([np.inf, 5.0])
+    with pytest.raises(h5md.H5MDError, match="non-finite values in box_upper"):
+        h5md.write(tmp_path / "sim.h5", traj)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_links_out_of_the_file_are_refused_and_links_inside_it_read(tmp_path):
+    import os
+    os.mkfifo(tmp_path / "fifo")
+    path = h5md.write(tmp_path / "sim.h5", make_traj())
+    with h5py.File(path, "a") as f:
+        f.move("particles/all/radius", "/kept_radius")
+        f["particles/all/radius"] = h5py.SoftLink("/kept_radius")
+    np.testing.assert_array_equal(h5md.read(path).radius, make_traj().radius)
+    with h5py.File(path, "a") as f:
+        del f["particles/all/mass"]
+        f["particles/all/mass"] = h5py.ExternalLink(str(tmp_path / "fifo"), "/mass")
+    with pytest.raises(h5md.H5MDError, match=f"{path}: particles/all/mass is an external link to .*fifo:/mass"):
+        h5md.read(path)
+
+
+def test_a_file_may_make_its_reader_allocate_its_budget_in_all_not_per_dataset(tmp_path):
+    path = h5md.write(tmp_path / "sim.h5", make_traj())
+    limit = max(h5md.MIN_DECLARED_BYTES, h5md.DECLARED_PER_FILE_BYTE * path.stat().st_size)
+    with h5py.File(path, "a") as f:
+        for key in ("observables/a/value", "observables/b/value"):
+            f.create_dataset(key, shape=(5,), dtype="f8")
+        del f["particles/all/radius"]
+        f.create_dataset("particles/all/radius", shape=(limit // 4 - 100,), dtype="f4", chunks=(2**16,),
+                         compression="gzip")                                     # within the limit alone
+        f.create_dataset("particles/all/properties", shape=(4, 100), dtype="f4")
+    with pytest.raises(h5md.H5MDError, match="passes the 256 MiB a file of"):
+        h5md.read(path)

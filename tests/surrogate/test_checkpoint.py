@@ -1,3 +1,4 @@
+import json
 import pickle
 
 import pytest
@@ -80,3 +81,65 @@ def test_a_checkpoint_moves_between_cpu_and_gpu(untrained, tmp_path):
                                           "json": {"stats": simulator.stats, "model": simulator.model_config}})
     back, _ = checkpoint.simulator_from(tmp_path / "gpu.pt", "cpu")
     np.testing.assert_array_equal(rollout.rollout(back, sim).position, reference)     # the same weights
+
+
+@pytest.fixture
+def tiny_checkpoint(tmp_path):
+    """A tiny Graph-DEM checkpoint (no dataset needed) and its parts."""
+    from surrogate.simulator import LearnedSimulator
+    stats = {"dim": 2, "n_types": 2, "connectivity_radius": 1.0, "bounds": [[0, 10], [0, 10]],
+             "velocity_mean": [0, 0], "velocity_std": [1, 1], "acceleration_mean": [0, 0], "acceleration_std": [1, 1]}
+    model = {"history": 3, "embed": 4, "mlp_layers": 2, "properties": [], "latent": 8, "hidden": 8,
+             "message_passing": 1}
+    weights = LearnedSimulator(stats, model).state_dict()
+    path = tmp_path / "model.pt"
+    checkpoint.save(path, {"model": weights, "json": {"stats": stats, "model": model}})
+    return path, stats, model, weights
+
+
+def test_a_compressed_record_is_refused_before_it_inflates(tiny_checkpoint, tmp_path):
+    import zipfile
+    path = tiny_checkpoint[0]
+    with zipfile.ZipFile(path) as source, zipfile.ZipFile(tmp_path / "deflated.pt", "w") as out:
+        for info in source.infolist():
+            out.writestr(info.filename, source.read(info), compress_type=zipfile.ZIP_DEFLATED)
+    assert checkpoint.simulator_from(path)[1]["model"]["latent"] == 8
+    with pytest.raises(checkpoint.CheckpointError, match=r"deflated.pt: record .*data.pkl is compressed \(zip method"):
+        checkpoint.read(tmp_path / "deflated.pt")
+
+
+def test_a_tensor_that_repeats_its_bytes_over_a_huge_shape_is_refused(tiny_checkpoint, tmp_path):
+    import torch
+    _, stats, model, weights = tiny_checkpoint
+    torch.save({"model": weights, "optimiser": {"exp_avg": torch.zeros(1).expand(2**30)},
+                "json": json.dumps({"stats": stats, "model": model})}, tmp_path / "view.pt")
+    with pytest.raises(checkpoint.CheckpointError, match=r"view.pt: its tensors hold more than the \d+ bytes it stores "
+                                                         r"\(a tensor of shape \(1073741824,\) repeats its data\)"):
+        checkpoint.read(tmp_path / "view.pt")
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"latent": 60000}, "model.latent' = 60000 .* maximum of 4096"),
+    ({"message_passing": 2.0}, "model.message_passing' = 2.0 .* must be an integer"),
+    ({"history": 1}, "model.history' = 1 .* minimum of 2"),
+])
+def test_model_sizes_outside_the_schemas_ranges_are_refused_from_the_metadata(tiny_checkpoint, tmp_path, change,
+                                                                                message):
+    import torch
+    _, stats, model, weights = tiny_checkpoint
+    torch.save({"model": weights, "json": json.dumps({"stats": stats, "model": {**model, **change}})},
+               tmp_path / "sizes.pt")
+    with pytest.raises(checkpoint.CheckpointError, match=f"sizes.pt: its model metadata is outside the config "
+                                                         f"schema's range: config key '{message}"):
+        checkpoint.load(tmp_path / "sizes.pt")
+
+
+def test_sizes_in_range_that_do_not_fit_the_weights_are_refused_before_the_model_is_built(tiny_checkpoint, tmp_path):
+    import torch
+    _, stats, model, weights = tiny_checkpoint
+    torch.save({"model": weights, "json": json.dumps({"stats": {**stats, "n_types": 10**7},
+                                                      "model": {**model, "embed": 1024}})}, tmp_path / "types.pt")
+    with pytest.raises(checkpoint.CheckpointError, match=r"types.pt: weights do not fit the model it describes: "
+                                                         r"model.node_constructor.embedding.weight is \(2, 4\), the "
+                                                         r"model's \(10000000, 1024\)"):
+        checkpoint.simulator_from(tmp_path / "types.pt")
