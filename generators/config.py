@@ -297,10 +297,18 @@ _VALIDATOR = jsonschema.validators.extend(
         "integer", lambda _checker, value: isinstance(value, int) and not isinstance(value, bool)))
 
 
-@functools.cache
+_VALIDATORS: dict[str | None, tuple[dict, jsonschema.Draft202012Validator]] = {}
+
+
 def _validator(ref: str | None) -> jsonschema.Draft202012Validator:
-    """The validator of the whole schema (``ref`` None) or of its node ``ref``, built once."""
-    return _VALIDATOR(schema() if ref is None else {"$defs": schema()["$defs"], "$ref": ref})
+    """The validator of the whole schema (``ref`` None) or of its node ``ref``, built once per schema: a schema
+    built anew (an engine or scene registered since, ``schema.cache_clear()``) gets a new validator."""
+    root = schema()
+    cached = _VALIDATORS.get(ref)
+    if cached is None or cached[0] is not root:
+        cached = (root, _VALIDATOR(root if ref is None else {"$defs": root["$defs"], "$ref": ref}))
+        _VALIDATORS[ref] = cached
+    return cached[1]
 
 
 def _raise_errors(validator: jsonschema.Draft202012Validator, value: Any, prefix: tuple[str, ...] = ()) -> None:
