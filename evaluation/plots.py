@@ -18,7 +18,8 @@ from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plain, pla
 STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
          "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity"),
-         "dem_ensemble": dict(color="#2a6fd4", lw=1.2, ls=":", label="DEM ensemble (perturbed rerun)")}
+         "dem_ensemble": dict(color="#2a6fd4", lw=1.2, ls=":",
+                              label="DEM ensemble (members from the last given frame)")}
 
 
 
