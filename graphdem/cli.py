@@ -79,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "complete", None) is not None:      # a subcommand's paths that default to the workflow's
+        args.complete(args)
     cli_paths.check(subcommands(parser)[args.command], args)
     try:
         args.func(args)

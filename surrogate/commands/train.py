@@ -30,6 +30,18 @@ def register(sub) -> None:
     p.add_argument("--fresh", action="store_true", help="ignore an unfinished last.pt and start over")
     p.add_argument("--max-steps", type=int, help="stop after this many steps, leaving a resumable last.pt")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(complete=default_paths)
+
+
+def default_paths(args) -> None:
+    """Fill --stats, --splits and --out-dir left out with the workflow's paths of --scene or --benchmark, so that
+    `graphdem` checks them against each other before training starts, as it checks paths given."""
+    if not args.name:
+        return
+    where = Path("results") / args.name
+    for dest, default in (("stats", "dataset/stats.json"), ("splits", "dataset/splits.csv"), ("out_dir", "model")):
+        if getattr(args, dest) is None:
+            setattr(args, dest, where / default)
 
 
 def run(args) -> None:

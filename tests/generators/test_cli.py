@@ -175,3 +175,16 @@ def test_every_output_option_of_every_subcommand_refuses_each_of_its_inputs(tmp_
     assert _tree(tmp_path) == before
     assert len(found) > 150 and {a.case for a in found} == set(CASES)
     assert {"--table-html", "--frames-out", "--substeps-plot", "--history", "--plots"} <= {a.output for a in found}
+
+
+def test_trains_default_paths_are_checked_like_given_ones(tmp_path, capsys, monkeypatch):
+    """`graphdem train --scene slide` writes results/slide/model/ by default: a --stats inside it is refused by
+    name before training starts, and the defaults themselves pass."""
+    monkeypatch.chdir(tmp_path)
+    message = refused(["train", "--scene", "slide", "--stats", "results/slide/model/stats.json"], capsys)
+    assert "--out-dir" in message and "--stats" in message
+    args = cli.build_parser().parse_args(["train", "--scene", "slide"])
+    args.complete(args)
+    assert (args.stats, args.splits, args.out_dir) == (Path("results/slide/dataset/stats.json"),
+                                                       Path("results/slide/dataset/splits.csv"),
+                                                       Path("results/slide/model"))
