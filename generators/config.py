@@ -25,7 +25,7 @@ import jsonschema
 import yaml
 
 from generators import config_checks, engines, property_sensitivity, scenes
-from generators.errors import ConfigError
+from generators.errors import ConfigError, did_you_mean
 
 DEFAULTS = resources.files("generators").joinpath("defaults")
 SCENES_DIR = resources.files("generators").joinpath("scenes")
@@ -131,8 +131,9 @@ def _describe(error: jsonschema.ValidationError, schema: dict, always: bool = Fa
         extra = sorted(set(error.instance) - set(allowed))
         if not extra and not always:
             return ""
+        hints = "".join(did_you_mean(k, allowed) for k in extra)
         return (
-            f"unknown config key {', '.join(repr(where + '.' + k if named else k) for k in extra)}; "
+            f"unknown config key {', '.join(repr(where + '.' + k if named else k) for k in extra)}{hints}; "
             f"allowed keys{' under ' + where if named else ''}: {', '.join(allowed)}"
         )
     if error.validator == "required":

@@ -48,8 +48,21 @@ REGISTRARS = (
 )
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, whose refusal of a value outside an option's choices adds the closest choice ("did you
+    mean"); the subcommands' parsers are of this class too."""
+
+    def _check_value(self, action, value):
+        if action.choices is not None and value not in action.choices:
+            from generators.errors import did_you_mean
+            choices = ", ".join(map(repr, action.choices))
+            hint = did_you_mean(value, list(action.choices)) if isinstance(value, str) else ""
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r}{hint} (choose from {choices})")
+        return super()._check_value(action, value)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="graphdem",
         description="Graph-DEM pipeline: DEM sweeps (LAMMPS, YADE) to H5MD datasets, then training, rollout and "
                     "evaluation of the Graph-DEM surrogate. The Snakemake workflow calls these subcommands; they "

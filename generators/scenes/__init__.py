@@ -11,6 +11,7 @@ import functools
 import importlib
 import pkgutil
 
+from generators.errors import did_you_mean
 from generators.scene import Scene
 
 
@@ -36,5 +37,5 @@ def names() -> list[str]:
 def get(name: str) -> Scene:
     scenes = registry()
     if name not in scenes:
-        raise ValueError(f"unknown scene {name!r}; known: {', '.join(scenes)}")
+        raise ValueError(f"unknown scene {name!r}{did_you_mean(name, list(scenes))}; known: {', '.join(scenes)}")
     return scenes[name]

@@ -620,7 +620,8 @@ def test_bad_finetune_settings_are_refused_by_key_with_the_schemas_rule():
         train.check_finetune({**FINETUNE, "lr": float("nan")})
     with pytest.raises(ValueError, match="'train.finetune' is missing 'lr'"):
         train.check_finetune({"epochs": 2})
-    with pytest.raises(ValueError, match=r"unknown config key 'train.finetune.lr_decay'; allowed keys under "
+    with pytest.raises(ValueError, match=r"unknown config key 'train.finetune.lr_decay' \(did you mean "
+                                         r"'ema_decay'\?\); allowed keys under "
                                          r"train.finetune: batch_size, .*warmup"):
         train.check_finetune({**FINETUNE, "lr_decay": 0.5})
     with pytest.raises(ValueError, match=r"'train.finetune' = 3 is not allowed; allowed: null or a mapping of "

@@ -277,7 +277,7 @@ def test_changed_stiffness_resettles_the_packing(workdir):
 
 
 @pytest.mark.parametrize("override, expected", [
-    ("slide={youngs: 5.0e9}", "unknown config key 'slide.youngs'; allowed keys under slide"),
+    ("slide={youngs: 5.0e9}", "unknown config key 'slide.youngs' (did you mean 'young'?); allowed keys under slide"),
     ("slide={frames: 2}", "config key 'slide.frames' = 2 is not allowed"),
     ("slide={engine: matdem}", "'matdem' is not one of ['lammps', 'yade']"),
 ])
@@ -367,7 +367,7 @@ def test_the_benchmarks_target_plans_a_card_per_set_over_the_seeds(tmp_path, see
     assert jobs.get("evaluate_seed_ensemble", 0) == (n if seeds > 1 else 0)      # the seeds' models as one
     assert "seeds" not in jobs                       # the card reads the seeds' tables itself, not seeds.csv
     proc = snakemake(tmp_path / "work", "results/slide/card.md", "-n", config=(f"solidgn_root={root}",))
-    assert proc.returncode != 0 and "No rule to produce results/slide/card.md" in proc.stdout + proc.stderr
+    assert proc.returncode != 0 and "no rule makes 'results/slide/card.md'" in proc.stdout + proc.stderr
 
 
 @pytest.mark.skipif(not SOLIDGN.is_dir(), reason="the Solid-GN data is not beside this checkout")

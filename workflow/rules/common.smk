@@ -23,6 +23,7 @@ from graphdem_workflow import launch as glaunch
 from graphdem_workflow import locks as glocks
 from graphdem_workflow import report as greport
 from graphdem_workflow import scales as gscales
+from graphdem_workflow import targets as gtargets
 
 # Rules call `graphdem`; make sure it is the one installed beside this Snakemake.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
