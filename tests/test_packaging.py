@@ -176,3 +176,13 @@ def test_make_install_uses_the_constraints_and_reruns_when_they_change(tmp_path)
     installs = [line for line in planned.splitlines() if " -m pip install" in line and "--upgrade pip" not in line]
     assert installs and all("-c constraints.txt" in line for line in installs)
     assert "torch" in installs[0] and "-e '.[dev]'" in installs[-1]
+
+
+def test_the_license_and_citation_agree_with_the_package_metadata():
+    assert PROJECT["license"] == "MIT" and PROJECT["license-files"] == ["LICENSE"]
+    assert (ROOT / "LICENSE").read_text().startswith("MIT License\n")
+    citation = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert citation["cff-version"] == "1.2.0" and citation["license"] == PROJECT["license"]
+    assert citation["version"] == PROJECT["version"] and citation["title"].startswith(PROJECT["name"])
+    article = citation["references"][0]
+    assert (article["doi"], article["journal"], article["year"]) == ("10.3390/app151910432", "Applied Sciences", 2025)
