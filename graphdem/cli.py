@@ -4,8 +4,8 @@ Each stage registers its own subcommands (``register(sub)``, next to the code th
 in generators/cli.py (config, sweep, prepare, simulate, convert, stability-dem, restitution, physics,
 crosscheck, transfer, import-solidgn, export, inspect), the surrogate's in surrogate/commands/ (dataset,
 contacts, train, rollout), the evaluation's in evaluation/commands/ (evaluate, combine, seeds, card,
-property-sensitivity, shear-stress-readout, shear-stress-check, stability-surrogate, the performance stage's) and
-evaluation/doc_tables/ (tables: the docs' results tables).
+property-sensitivity, shear-stress-readout, shear-stress-check, stability-surrogate, the performance stage's,
+publish) and evaluation/doc_tables/ (tables: the docs' results tables).
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason (naming the file, sim,
 frame or config key) when something is wrong. Before it runs, the paths it writes are checked against the paths it
 reads, as every path option declares them where it is added (generators/cli_paths.py).
@@ -23,6 +23,7 @@ from evaluation.commands import (
     evaluate,
     performance,
     property_sensitivity,
+    publish,
     seeds,
     shear_stress,
     stability,
@@ -44,6 +45,7 @@ REGISTRARS = (
     shear_stress.register,              # shear-stress-readout, shear-stress-check
     stability.register,                 # stability-surrogate
     performance.register,               # performance-dem, performance-surrogate, performance-report
+    publish.register,                   # publish
     doc_tables.add_command,             # tables
 )
 

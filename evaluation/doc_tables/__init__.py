@@ -31,7 +31,7 @@ from generators.cli_paths import input_path
 __all__ = ["DOCUMENTS", "Outcome", "check", "code_hash", "documents", "plan", "write", "add_command"]
 
 # The markdown files whose tables are generated, as glob patterns under the root (the repository).
-DOCUMENTS = ("*.md", "docs/**/*.md")
+DOCUMENTS = ("*.md", "docs/**/*.md", "surrogate/pretrained/*.md")   # the last: the pretrained models' cards
 RESULTS = "results"                 # the results folder under the root
 CODE_ROOT = Path(__file__).resolve().parents[2]     # holds the packages generators/, surrogate/, evaluation/
 DIGITS = 12                         # hex digits of the stamp's hashes

@@ -56,3 +56,47 @@ def test_a_rollout_beyond_the_data_continues_the_frame_times(saved):
     assert api.rollout_mse(predicted, sim) > 0                           # scored on the frames both hold
     with pytest.raises(ValueError, match="predicts at least one frame"):
         api.rollout(simulator, sim, steps=0)
+
+
+def test_the_api_defaults_to_one_thread_and_the_auto_device_as_the_commands_do(saved):
+    import torch
+    path, _ = saved
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        simulator = api.load_simulator(path)
+        assert torch.get_num_threads() == 1 and simulator.runtime is None      # a plain checkpoint: as in training
+        expected = "cuda" if torch.cuda.is_available() else "cpu"
+        assert next(simulator.parameters()).device.type == expected
+        torch.set_num_threads(2)
+        api.load_simulator(path, device="cpu", threads=None)                   # None leaves torch's setting
+        assert torch.get_num_threads() == 2
+        with pytest.raises(ValueError, match="threads = 0: a number of CPU threads >= 1"):
+            api.load_simulator(path, threads=0)
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_a_pretrained_model_loads_by_name_with_its_runtime(saved, tmp_path, monkeypatch):
+    from surrogate import checkpoint, pretrained
+    path, sim_path = saved
+    runtime = {"split_edge_mlp": True, "skip_kinematic_pairs": True, "prune_isolated": True, "precision": "float32",
+               "sleep_speed": None, "keep_in_domain": True, "compile": True,
+               "contact_correction": {"allowed_overlap": 0.05, "iterations": 50}}
+    stored = checkpoint.load(path)
+    (tmp_path / "shipped").mkdir()
+    checkpoint.save(tmp_path / "shipped" / "slide.pt", {"model": stored["model"],
+                                                        "json": {**stored["json"], "pretrained": {"runtime": runtime}}})
+    monkeypatch.setattr(pretrained, "FOLDER", tmp_path / "shipped")
+    assert pretrained.names() == ["slide"]
+    simulator = api.load_simulator("slide", device="cpu")
+    assert simulator.runtime.as_dict() == {**runtime, "compile": False}       # compiling changes only the speed
+    sim = h5md.read(sim_path)
+    corrected = api.rollout(simulator, sim)
+    plain = api.rollout(api.load_simulator(path, device="cpu"), sim)
+    assert not np.array_equal(corrected.position, plain.position)            # the contact correction is applied
+    switched = api.rollout(simulator, sim, runtime={**runtime, "contact_correction": None, "compile": False})
+    np.testing.assert_allclose(switched.position, plain.position, atol=1e-5)  # an explicit runtime wins
+    with pytest.raises(FileNotFoundError, match=r"no pretrained model 'slid' \(did you mean 'slide'\?\); the "
+                                                r"pretrained models: slide"):
+        api.load_simulator("slid")
