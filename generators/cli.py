@@ -1,6 +1,6 @@
 """The generators' stages on the `graphdem` command line: config, sweep, prepare, simulate, convert,
-inspect, export, import-solidgn, stability-dem, restitution, physics, crosscheck and transfer, each added by its
-registrar (REGISTRARS; graphdem/cli.py adds the surrogate's and runs them all).
+inspect, export, import-solidgn, import, stability-dem, restitution, physics, crosscheck and transfer, each added
+by its registrar (REGISTRARS; graphdem/cli.py adds the surrogate's and runs them all).
 
 Every subcommand writes its outputs atomically and exits non-zero with a one-line reason
 (naming the file, sim, frame or config key) when something is wrong.
@@ -18,6 +18,7 @@ from pathlib import Path
 from generators import config as gconfig
 from generators import engines, scenes
 from generators.cli_paths import input_path, output_file, output_series, replaced_folder, run_folder
+from generators.importers import cli as importers_cli
 
 
 def add_command(sub, name: str, run: Callable[[argparse.Namespace], None], help: str,
@@ -378,6 +379,11 @@ def _add_import_solidgn(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
+def _add_import(sub) -> None:
+    p = add_command(sub, "import", importers_cli.run, help=importers_cli.HELP, epilog=importers_cli.EPILOG)
+    importers_cli.add_options(p)
+
+
 def _add_export(sub) -> None:
     p = add_command(sub, "export", cmd_export,
                     help="write an H5MD sim or rollout as a ParaView time series (.pvd of .vtu)")
@@ -399,8 +405,8 @@ def _add_inspect(sub) -> None:
 #: surrogate's after them); each adds one subcommand to the `graphdem` subparsers ``sub``, its scene and engine
 #: choices from their registries
 REGISTRARS = (_add_config, _add_sweep, _add_prepare, _add_simulate, _add_convert, _add_stability_dem,
-              _add_restitution, _add_physics, _add_crosscheck, _add_transfer, _add_import_solidgn, _add_export,
-              _add_inspect)
+              _add_restitution, _add_physics, _add_crosscheck, _add_transfer, _add_import_solidgn, _add_import,
+              _add_export, _add_inspect)
 
 
 def add_commands(sub) -> None:

@@ -18,10 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # `graphdem --help`'s subcommands, in its order, when each stage came to register its own: none may go missing
 SUBCOMMANDS = ("config", "sweep", "prepare", "simulate", "convert", "stability-dem", "restitution", "physics",
-               "crosscheck", "transfer", "import-solidgn", "export", "inspect", "dataset", "contacts", "train",
-               "rollout", "evaluate", "combine", "seeds", "card", "property-sensitivity", "shear-stress-readout",
-               "shear-stress-check", "stability-surrogate", "performance-dem", "performance-surrogate",
-               "performance-report", "tables")
+               "crosscheck", "transfer", "import-solidgn", "import", "export", "inspect", "dataset", "contacts",
+               "train", "rollout", "evaluate", "combine", "seeds", "card", "property-sensitivity",
+               "shear-stress-readout", "shear-stress-check", "stability-surrogate", "performance-dem",
+               "performance-surrogate", "performance-report", "tables")
 
 
 def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
