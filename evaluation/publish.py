@@ -10,6 +10,7 @@ that ``graphdem tables --check`` flags the card when the code that produced its 
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -56,7 +57,8 @@ def card_text(meta: dict, info: dict, size_bytes: int, parameters: int) -> str:
         f"# Pretrained Graph-DEM: {scene}",
         "",
         f"Load it with `graphdem.load_simulator(\"{scene}\")`; made by `graphdem publish` from the workflow's "
-        f"results of `snakemake -c2 results/{scene}/metrics.csv` (default scale). docs/pretrained.md says how.",
+        f"results of `snakemake -c2 results/{scene}/metrics.csv` (default scale). docs/pretrained.md says how. "
+        f"`{scene}_example.h5` beside it is its first test sim (`surrogate.pretrained.example(\"{scene}\")`).",
         "",
         "| | |",
         "| --- | --- |",
@@ -84,8 +86,9 @@ def card_text(meta: dict, info: dict, size_bytes: int, parameters: int) -> str:
 
 def publish(scene: str, source: Path, splits: Path, metrics_csv: Path, runtime: dict, out_dir: Path,
             results: Path) -> tuple[Path, Path]:
-    """Write ``<out_dir>/<scene>.pt`` and ``<scene>.md`` (its card, the summary table generated from ``results``
-    by :mod:`evaluation.doc_tables`); return their paths."""
+    """Write ``<out_dir>/<scene>.pt``, ``<scene>.md`` (its card, the summary table generated from ``results``
+    by :mod:`evaluation.doc_tables`) and ``<scene>_example.h5`` (a copy of the first test sim); return the
+    checkpoint's and the card's paths."""
     from evaluation import doc_tables
     from evaluation.tables import read_csv
     stored = checkpoint.load(source)
@@ -95,6 +98,9 @@ def publish(scene: str, source: Path, splits: Path, metrics_csv: Path, runtime: 
     out_dir.mkdir(parents=True, exist_ok=True)
     pt, md = out_dir / f"{scene}.pt", out_dir / f"{scene}.md"
     checkpoint.save(pt, {"model": stored["model"], "json": meta})
+    table = pd.read_csv(splits)
+    with atomic_path(out_dir / f"{scene}_example.h5") as tmp:
+        shutil.copyfile(table.loc[table["split"] == "test", "path"].iloc[0], tmp)
     parameters = sum(int(t.numel()) for t in stored["model"].values())
     with atomic_path(md) as tmp:
         tmp.write_text(card_text(meta, info, pt.stat().st_size, parameters))

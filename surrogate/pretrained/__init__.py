@@ -3,8 +3,9 @@
 Each ``<scene>.pt`` is a checkpoint as the train stage writes it (weights and metadata: the dataset statistics and
 model config), whose metadata adds ``pretrained``: the scene, the runtime switches its test metrics were measured
 with, the config hash, the code version and the data it was trained on. Its model card ``<scene>.md`` gives the
-test metrics beside constant velocity and the DEM ensemble. Both are written by ``graphdem publish`` from a
-workflow run's results (workflow/rules/publish.smk); docs/pretrained.md says how they were made.
+test metrics beside constant velocity and the DEM ensemble; ``<scene>_example.h5`` is its first test sim (H5MD), a
+trajectory to roll it out on without running the DEM. All three are written by ``graphdem publish`` from a workflow
+run's results (workflow/rules/publish.smk); docs/pretrained.md says how they were made.
 ``graphdem.load_simulator("slide")`` loads one by its scene's name.
 """
 
@@ -41,3 +42,8 @@ def path(name: str) -> Path:
 def card(name: str) -> Path:
     """The model card (Markdown) of the pretrained model ``name``."""
     return path(name).with_suffix(".md")
+
+
+def example(name: str) -> Path:
+    """The example sim (H5MD, one of the test sims it was scored on) of the pretrained model ``name``."""
+    return path(name).with_name(f"{name}_example.h5")
