@@ -1,11 +1,11 @@
 """Evaluation (docs/surrogate.md): rollout MSE and the scene metrics of truth, Graph-DEM, the
 constant-velocity baseline and, where given, the DEM ensemble (the same sims rerun by their engine from a
 perturbed state: the chaos floor), computed by the same code, written to metrics.csv and
-metrics_per_step.csv with the checkpoint, config and code version they came from."""
+metrics_per_step.csv with the checkpoint, config digest and code version they came from; the config itself is
+written once, beside metrics.csv (:mod:`evaluation.config_sidecar`)."""
 
 from __future__ import annotations
 
-import json
 import logging
 import subprocess
 import warnings
@@ -17,6 +17,7 @@ import pandas as pd
 import torch
 from tqdm import tqdm
 
+from evaluation import config_sidecar
 from evaluation.baseline import constant_velocity
 from evaluation.metrics import of_scene, plausibility
 from evaluation.metrics.scores import Intervals
@@ -41,6 +42,8 @@ SECONDS = "seconds per frame"
 STEP_VALUES = ("truth", "prediction", "blown_up", "member", "truth_start", "spread", "diameter")
 # rows of a model with a neighbour cap: per predicted frame, the receivers it capped and the edges it dropped
 CAPPED, DROPPED = "capped receivers per frame", "dropped edges per frame"
+# the units of the rows these names make (the metrics' own: evaluation.metrics.units)
+UNITS = {SECONDS: "s", CAPPED: "receivers", DROPPED: "edges"}
 
 
 @dataclass
@@ -199,8 +202,9 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
              split: str = "test", split_note: str = "", runtime: Runtime | None = None,
              allow_other_scene: bool = False,
              device: str = "cpu", intervals: Intervals | None = None
-             ) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated]]:
-    """Metrics table, per-step table and the evaluated sims of a checkpoint on H5MD sims.
+             ) -> tuple[pd.DataFrame, pd.DataFrame, list[Evaluated], object]:
+    """Metrics table, per-step table, the evaluated sims of a checkpoint on H5MD sims and the configuration the
+    rows' ``config_sha`` names (:mod:`evaluation.config_sidecar`; :func:`write` puts it beside the table).
 
     ``ensemble_dir``: the DEM ensemble's member folders (one or several), ``<sim id>.h5`` per sim in each, every
     member restarted from the sim's state at its last given frame; scored one by one (dem_ensemble) and as their
@@ -250,16 +254,14 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     table = summarise(steps, frames, intervals)
     timing = _timing_rows(str(table["scene"].iloc[0]), sims, cap is not None)
     table = pd.concat([table, pd.DataFrame(timing).reindex(columns=table.columns)], ignore_index=True)
-    configs = [{"model": m["model"], "train": m.get("train")} for m in metas]
+    config = config_sidecar.config_of(metas)
     recorded = {"split": split, "split_note": split_note, "history": int(history),
-                "checkpoint": name, "checkpoint_sha": sha,
-                "config_sha": ensemble.config_digest(metas),
-                "code_version": code_version(),
-                "config": json.dumps(configs[0] if len(configs) == 1 else configs, sort_keys=True)}
+                "checkpoint": name, "checkpoint_sha": sha, "config_sha": config_sidecar.digest(config),
+                "code_version": code_version()}
     for df in (table, steps):
         for key, value in recorded.items():
             df[key] = value
-    return table, steps, sims
+    return table, steps, sims, config
 
 
 def _prediction(simulator, sim, traj: h5md.Trajectory, rollouts_dir: Path | None, sha: str, history: int,
@@ -286,10 +288,10 @@ def _prediction(simulator, sim, traj: h5md.Trajectory, rollouts_dir: Path | None
 
 def _timing_rows(scene: str, sims: list[Evaluated], capped: bool) -> list[dict]:
     """Graph-DEM's seconds per predicted frame and, with a neighbour cap, its counts per frame (means over sims)."""
-    rows = [{"scene": scene, "method": MODEL, "metric": SECONDS, "sim": "all",
+    rows = [{"scene": scene, "method": MODEL, "metric": SECONDS, "unit": UNITS[SECONDS], "sim": "all",
              "mean_prediction": float(np.mean([s.seconds_per_frame for s in sims])), "n_sims": len(sims)}]
     if capped:
-        rows += [{"scene": scene, "method": MODEL, "metric": metric, "sim": "all",
+        rows += [{"scene": scene, "method": MODEL, "metric": metric, "unit": UNITS[metric], "sim": "all",
                   "mean_prediction": float(np.mean([getattr(s, field) for s in sims])), "n_sims": len(sims)}
                  for metric, field in ((CAPPED, "capped_per_frame"), (DROPPED, "dropped_per_frame"))]
     return rows
@@ -306,16 +308,25 @@ def mean_per_step(steps: pd.DataFrame) -> pd.DataFrame:
 
 
 def write(table: pd.DataFrame, steps: pd.DataFrame, out_csv: Path, per_step_csv: Path | None,
-          output: Outputs | None = None) -> Path:
-    """The metrics table at ``out_csv`` and, if given, the per-step table (the mean over sims first) at
-    ``per_step_csv``; both or neither. With ``output`` (generators.atomic.atomic_outputs) they are staged in that
-    group, appearing only with its other outputs. Returns where the metrics CSV is (its temporary while staged)."""
+          output: Outputs | None = None, config: object = None) -> Path:
+    """The metrics table at ``out_csv``, the ``config`` its rows' ``config_sha`` names beside it
+    (:func:`evaluation.config_sidecar.path_of`) and, if given, the per-step table (the mean over sims first) at
+    ``per_step_csv``; all or none. A table with ``config_sha`` needs that config. With ``output``
+    (generators.atomic.atomic_outputs) they are staged in that group, appearing only with its other outputs.
+    Returns where the metrics CSV is (its temporary while staged)."""
     if output is None:
         with atomic_outputs() as group:
-            write(table, steps, out_csv, per_step_csv, group)
+            write(table, steps, out_csv, per_step_csv, group, config)
         return Path(out_csv)
+    shas = list(dict.fromkeys(table["config_sha"].dropna().astype(str))) if "config_sha" in table else []
+    if shas and (config is None or shas != [config_sidecar.digest(config)]):
+        given = "no config" if config is None else f"the config {config_sidecar.digest(config)}"
+        raise ValueError(f"{out_csv}: its rows name config_sha {', '.join(shas)}, and {given} was given to write "
+                         "beside it; write one evaluation's table with its own config")
     with output(Path(out_csv)) as metrics:
         table.to_csv(metrics, index=False)
+    if shas:
+        config_sidecar.write(out_csv, config, output)
     if per_step_csv is not None:
         mean = mean_per_step(steps)
         # the provenance columns (the same in every row), not the keys of the mean: under several protocols the

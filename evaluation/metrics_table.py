@@ -3,9 +3,10 @@
 metrics.csv keeps NaN (an empty cell) wherever a value does not exist, and the CSV stays as it is. The
 table tells the two kinds apart:
 
-- ``n/a``: the column does not apply to the row's metric (no Acc or truth for the rollout MSE or for a
-  metric that compares the prediction with the truth, such as the slide's Dis; no MSE for a scene metric;
-  only the mean for the rollout timing and the neighbour cap's counts);
+- ``n/a``: the column does not apply to the row's metric (no Acc, truth or mean prediction for the rollout MSE,
+  whose figure is its MSE; no Acc or truth for a metric that compares the prediction with the truth, such as
+  the slide's Dis; no MSE for a scene metric; only the mean for the rollout timing and the neighbour cap's
+  counts);
 - ``undefined``: the column applies but has no value, with the reason: a blown-up rollout (named), or a
   quantity whose DEM truth is zero or undefined in every scored frame (e.g. the meteorite's crater depth
   before any ground disc moved), or a rollout without a recorded timing.
@@ -44,7 +45,7 @@ COMPARED = ("skill", "error_in_spreads", "vs_members")
 
 # The columns that apply to each kind of row; every other value column is n/a for it.
 APPLIES = {
-    "mse": {"mse", "skill", "error_in_spreads", "vs_members", "mean_prediction", "n_sims", "n_frames", "n_blown_up"},
+    "mse": {"mse", "skill", "error_in_spreads", "vs_members", "n_sims", "n_frames", "n_blown_up"},
     "seconds": {"mean_prediction", "n_sims"},
     "cap": {"mean_prediction", "n_sims"},
     "truth": {"acc_percent", "acc_frames", "acc_pooled_percent", "change_error", "change_error_scaled", "skill",
@@ -54,7 +55,8 @@ APPLIES = {
     "plausibility": {"mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up"},
 }
 NOT_APPLICABLE = {
-    "mse": "the rollout MSE is its own error measure: no Acc, no truth value, no frames left out",
+    "mse": "the rollout MSE is its own error measure (the MSE column): no Acc, no truth or mean value, no frames "
+           "left out",
     "seconds": "the rollout wall time per predicted frame: a mean over sims only",
     "cap": "what the neighbour cap cut per predicted frame of the rollout: a mean over sims only",
     "truth": "a scene metric has Acc against its truth, not an MSE",
@@ -167,11 +169,12 @@ def cell(row: pd.Series, column: str, kind: str) -> tuple[str, str | None]:
 
 
 def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, set[str]]) -> str:
+    from evaluation.metrics import shown as shown_unit
     out = []
     for _, row in table.iterrows():
         kind = _kind(row, metric_names)
-        unit = units.get(row["metric"], "")
-        unit = "" if kind == "mse" else unit.replace("$^2$", "²")
+        unit = units.get(row["metric"], "") if _is_nan(row.get("unit")) else str(row["unit"])
+        unit = "" if kind == "mse" else shown_unit(unit)
         label = html.escape(str(row["metric"]) + (f" ({unit})" if unit else ""))
         cells = [f'<td class="text">{html.escape(str(row["method"]))}</td>', f'<td class="text">{label}</td>',
                  f'<td class="text">{html.escape(str(row["sim"]))}</td>']
@@ -190,10 +193,11 @@ def _table(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, s
 
 
 def to_html(table: pd.DataFrame, title: str) -> str:
-    """The HTML page of a metrics.csv table (one section per protocol K where there are several)."""
+    """The HTML page of a metrics.csv table (one section per protocol K where there are several); each metric
+    named with its unit (the CSV's ``unit`` column, else the scene's registered unit)."""
     from evaluation.metrics import units as metric_units
-    units = metric_units()
     scene = str(table["scene"].iloc[0]) if len(table) else ""
+    units = metric_units(scene or None)
     names = _scene_metrics(scene)
     parts = [f"<h1>{html.escape(title)}</h1>"]
     groups = list(table.groupby("history", sort=False)) if "history" in table.columns else [(None, table)]

@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from evaluation.metrics import units  # noqa: E402
+from evaluation.metrics import shown, units  # noqa: E402
 from generators.atomic import atomic_path  # noqa: E402
 from generators.plots import SPECIES_COLOURS, draw_discs, frame_axes, plain, plane_section  # noqa: E402,F401
 
@@ -19,13 +19,34 @@ STYLE = {"truth": dict(color="black", lw=2.0, label="DEM (truth)"),
          "graphdem": dict(color="#d43d2a", lw=1.6, label="Graph-DEM"),
          "constant_velocity": dict(color="#777777", lw=1.2, ls="--", label="constant velocity"),
          "dem_ensemble": dict(color="#2a6fd4", lw=1.2, ls=":",
-                              label="DEM ensemble (members from the last given frame)")}
+                              label="DEM ensemble (members from the last given frame)"),
+         "dem_ensemble_mean": dict(color="#2a6fd4", lw=1.0, ls="-.", label="DEM ensemble mean")}
+OTHER_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf")    # methods of no style
 
+
+def _styles(methods: list[str]) -> dict[str, dict]:
+    """The line style of every method: :data:`STYLE`'s, else one of :data:`OTHER_COLOURS` (the same in every
+    panel), labelled by the method's name."""
+    others = [m for m in methods if m not in STYLE]
+    return {**{m: STYLE[m] for m in methods if m in STYLE},
+            **{m: dict(color=OTHER_COLOURS[i % len(OTHER_COLOURS)], lw=1.2, label=plain(m))
+               for i, m in enumerate(others)}}
 
 
 def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str = "time") -> Path:
+    """:func:`metrics_figure` written to ``path`` (PNG, atomically)."""
+    fig = metrics_figure(per_step, title, x)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return path
+
+
+def metrics_figure(per_step: pd.DataFrame, title: str, x: str = "time"):
     """One panel per metric: mean over test sims of truth and of each prediction against ``x``:
-    ``time`` (s) or ``tau`` (the predicted frame's number, for data whose times are nominal)."""
+    ``time`` (s) or ``tau`` (the predicted frame's number, for data whose times are nominal). The legend sits
+    below the panels, outside every one of them, so it covers no curve, tick or label."""
     if x not in ("time", "tau"):
         raise ValueError(f"x must be 'time' or 'tau', got {x!r}")
     mean = per_step[per_step["sim"] == "all"]
@@ -33,35 +54,32 @@ def metrics_over_frames(per_step: pd.DataFrame, path: Path, title: str, x: str =
     if several:
         mean = mean.assign(metric=[f"K = {k}: {m}" for k, m in zip(mean["history"], mean["metric"], strict=True)])
     metrics = list(dict.fromkeys(mean["metric"]))
+    scene = str(mean["scene"].iloc[0]) if "scene" in mean.columns and len(mean) else None
+    unit = units(scene)
+    styles = _styles(list(dict.fromkeys(mean["method"])))
     cols = min(3, len(metrics))
     rows = int(np.ceil(len(metrics) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(max(4.6 * cols, 6.0), 3.2 * rows + 0.4), squeeze=False,
-                             constrained_layout=True)
+    fig, axes = plt.subplots(rows, cols, figsize=(max(4.6 * cols, 6.0), 3.2 * rows + 0.8), squeeze=False,
+                             layout="constrained")
     for ax, metric in zip(axes.flat, metrics, strict=False):
         part = mean[mean["metric"] == metric]
         first = part[part["method"] == part["method"].iloc[0]]
         if first["truth"].notna().any():
             ax.plot(first[x], first["truth"], **STYLE["truth"])
         for method, group in part.groupby("method", sort=False):
-            ax.plot(group[x], group["prediction"], **STYLE.get(method, dict(label=plain(method))))
+            ax.plot(group[x], group["prediction"], **styles[method])
         ax.set_title(plain(metric))
         ax.set_xlabel("time (s)" if x == "time" else "predicted frame")
-        ax.set_ylabel(units().get(metric.split(": ")[-1], ""))
+        ax.set_ylabel(plain(shown(unit.get(metric.split(": ")[-1], ""))))
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(metrics):]:
         ax.set_visible(False)
-    drawn = (["truth"] if mean["truth"].notna().any() else []) + list(dict.fromkeys(mean["method"]))
-    handles = [plt.Line2D([], [], **STYLE[k]) for k in drawn if k in STYLE]
-    if len(metrics) == 1:
-        axes.flat[0].legend(handles=handles, loc="upper left", fontsize=9, frameon=False)
-    else:
-        fig.legend(handles=handles, loc="lower right", fontsize=9, frameon=False)
+    drawn = (["truth"] if mean["truth"].notna().any() else []) + list(styles)
+    handles = [plt.Line2D([], [], **(STYLE | styles)[k]) for k in drawn]
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 3 if cols >= 3 else 2),
+               fontsize=9, frameon=False)
     fig.suptitle(plain(title))
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
-    return path
+    return fig
 
 
 def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.ndarray, species: np.ndarray,
@@ -116,21 +134,64 @@ def animation(path: Path, truth: np.ndarray, prediction: np.ndarray, radius: np.
     return path
 
 
+# Where a point's number may go, in points from the point, tried in turn: the first that overlaps no marker and no
+# number placed before it (right above, right below, left above, left below, then further out).
+NUMBER_OFFSETS = tuple((side * dx, dy) for dx, dy in ((5, 2), (5, -10), (5, 11), (5, -19), (12, 20), (12, -28))
+                       for side in (1, -1))
+NUMBER_SIZE = 7                 # font size of the points' numbers and of the key
+
+
+def _boxes_overlap(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def number_points(fig, ax, xs, ys, marker_points: float = 7.0) -> list[tuple[float, float, float, float]]:
+    """Write 1, 2, ... beside the points (``xs``, ``ys`` in data coordinates) of a laid-out axes, each at the first
+    of :data:`NUMBER_OFFSETS` where it overlaps no marker (``marker_points`` wide) and no earlier number; returns
+    the numbers' boxes (points, display origin)."""
+    fig.canvas.draw()                                            # the layout that data -> display depends on
+    scale = 72.0 / fig.dpi
+    anchors = [tuple(scale * v for v in ax.transData.transform((x, y))) for x, y in zip(xs, ys, strict=True)]
+    half = marker_points / 2
+    taken = [(px - half, py - half, px + half, py + half) for px, py in anchors]
+    placed = []
+    for n, (px, py) in enumerate(anchors, 1):
+        width, height = 0.62 * NUMBER_SIZE * len(str(n)), NUMBER_SIZE
+        boxes = [(px + dx - (width if dx < 0 else 0), py + dy, px + dx + (0 if dx < 0 else width), py + dy + height)
+                 for dx, dy in NUMBER_OFFSETS]
+        choice = next((i for i, box in enumerate(boxes) if not any(_boxes_overlap(box, t) for t in taken)), 0)
+        dx, dy = NUMBER_OFFSETS[choice]
+        ax.annotate(str(n), (xs[n - 1], ys[n - 1]), textcoords="offset points", xytext=(dx, dy),
+                    ha="right" if dx < 0 else "left", va="bottom", fontsize=NUMBER_SIZE)
+        taken.append(boxes[choice])
+        placed.append(boxes[choice])
+    return placed
+
+
 def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
-    """Time per rollout (log) against rollout MSE for every scored contender, Pareto front joined.
+    """:func:`pareto_figure` written to ``path`` (PNG, atomically)."""
+    fig = pareto_figure(table, title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=130)
+    plt.close(fig)
+    return Path(path)
+
+
+def pareto_figure(table: pd.DataFrame, title: str):
+    """Time per rollout (log) against rollout MSE for every scored contender, Pareto front joined; each point is
+    numbered (the DEM's first, each kind from fast to slow; placed clear of the other points and numbers) and
+    named by its number in the key beside the axes.
 
     The DEM reference has MSE 0 by definition: it sits on the x axis of a symlog error scale."""
     scored = table[table["mse"].notna() & table["seconds_per_rollout"].notna()]
-    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    order = scored.assign(surrogate=scored["kind"] != "dem")
+    scored = order.sort_values(["surrogate", "seconds_per_rollout"], kind="stable")
+    fig, ax = plt.subplots(figsize=(9.0, 5.0), layout="constrained")
     markers = {"dem": dict(marker="s", color="#1f5fa8"), "surrogate": dict(marker="o", color="#d43d2a")}
-    for kind, part in scored.groupby("kind"):
-        ax.scatter(part["seconds_per_rollout"], part["mse"], s=42, label={"dem": "DEM", "surrogate": "Graph-DEM"}[kind],
-                   zorder=3, clip_on=False, **markers[kind])
-        # surrogate variants share nearly one error: their names fan out upwards, one angle each
-        for n, row in enumerate(part.sort_values("seconds_per_rollout").itertuples()):
-            angle = 55 if kind == "surrogate" else 0
-            ax.annotate(plain(row.contender), (row.seconds_per_rollout, row.mse), textcoords="offset points",
-                        xytext=(3, 5 + 4 * (n % 2) * (kind == "surrogate")), fontsize=7, rotation=angle)
+    names = {"dem": "DEM", "surrogate": "Graph-DEM"}
+    for kind, part in scored.groupby("kind", sort=False):
+        ax.scatter(part["seconds_per_rollout"], part["mse"], s=42, label=names[kind], zorder=3, clip_on=False,
+                   **markers[kind])
     front = scored[scored["on_pareto_front"].astype(bool)].sort_values("seconds_per_rollout")
     ax.step(front["seconds_per_rollout"], front["mse"], where="post", color="black", lw=1.0, alpha=0.7,
             label="Pareto front", zorder=2)
@@ -140,7 +201,15 @@ def pareto(table: pd.DataFrame, path: Path, title: str) -> Path:
     ax.set_ylim(bottom=0.0, top=float(scored["mse"].max()) * 8 if len(positive) else None)
     ax.set_xlabel("wall time per rollout (s, log)")
     ax.set_ylabel("rollout MSE against the DEM data (m$^2$)")
-    return _finish(fig, ax, path, title, legend_size=8)
+    ax.set_title(plain(title), fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    handles, _ = ax.get_legend_handles_labels()
+    key = [plt.Line2D([], [], ls="", ms=4, label=plain(f"{n}  {row.contender}"), **markers[row.kind])
+           for n, row in enumerate(scored.itertuples(), 1)]
+    fig.legend(handles=handles + key, loc="outside right upper", fontsize=NUMBER_SIZE, frameon=False,
+               ncol=1 if len(key) <= 30 else 2)
+    number_points(fig, ax, scored["seconds_per_rollout"].to_numpy(float), scored["mse"].to_numpy(float))
+    return fig
 
 
 def _finish(fig, ax, path: Path, title: str, legend_size: int) -> Path:

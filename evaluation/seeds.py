@@ -1,8 +1,8 @@
 """The spread over training seeds (docs/surrogate.md, "Seeds"): the same scene or benchmark trained with
 ``seeds`` seeds, each model scored by the same evaluation, and every metric's mean and spread.
 
-One row per method, metric, protocol K (``history``) and value column (``acc_percent``,
-``acc_pooled_percent``, ``mse``, ``mean_prediction``): the mean, the sample standard deviation (ddof 1), the
+One row per method, metric, protocol K (``history``) and value column that has a value (``acc_percent``,
+``acc_pooled_percent``, ``mse``, ``mean_prediction``; the rollout MSE's figure is its ``mse`` alone): the mean, the sample standard deviation (ddof 1), the
 smallest and largest value, the number of seeds, and each seed's value (``values``, ``seed:value``). A seed
 whose model blew up on a sim has NaN there, which makes the mean NaN: a spread is never taken over the seeds
 that happened to work.
@@ -38,8 +38,6 @@ def spread(tables: dict[int, pd.DataFrame]) -> pd.DataFrame:
             if column not in group.columns or group[column].isna().all():
                 continue
             values = group.set_index("seed")[column].astype(float)
-            if column == "mean_prediction" and group["mse"].notna().any():
-                continue                           # the rollout MSE's mean_prediction repeats its mse
             rows.append({**dict(zip(KEYS, key, strict=True)), "column": column, **summary(values)})
     return pd.DataFrame(rows)
 

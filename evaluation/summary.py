@@ -4,8 +4,8 @@ a bootstrap interval over sims (the yardstick; docs/surrogate.md).
 Per method and metric, one ``sim = all`` row, plus the rollout MSE of every sim. The figures
 (:mod:`evaluation.metrics.scores` gives each rule):
 
-* rollout MSE (``mse``), and for a metric that compares the prediction with the truth frame by frame (the
-  slide's Dis) its mean (``mean_prediction``); for a metric with a truth of its own (Max Ht, Runout) the
+* rollout MSE (``mse``, only there: its ``mean_prediction`` is empty), and for a metric that compares the
+  prediction with the truth frame by frame (the slide's Dis) its mean (``mean_prediction``); for a metric with a truth of its own (Max Ht, Runout) the
   article's Acc (``acc_percent``, kept for the comparison with its tables, and ``acc_pooled_percent``) and the
   datum-free ``change_error`` (metric units), scaled by ``change_scale`` (``change_scale_kind``: the mean
   particle diameter for lengths, else the truth's mean change) into ``change_error_scaled``;
@@ -17,7 +17,11 @@ Per method and metric, one ``sim = all`` row, plus the rollout MSE of every sim.
   positional variance about their mean, m²; for a metric their standard deviation, in its unit), and
   ``error_in_spreads`` every method's error in units of it (for the MSE the root of MSE / variance; within 2:
   as close as the DEM can say). ``vs_members``: the error over the members' mean error;
-* ``*_ci_low``/``*_ci_high``: the bootstrap interval of the figure (config ``intervals``).
+* ``*_ci_low``/``*_ci_high``: the bootstrap interval of the figure (config ``intervals``);
+* ``unit``: the unit of the metric's values (``mse``, ``mean_truth``, ``mean_prediction``, ``change_error``,
+  ``change_scale``, ``ensemble_spread``, ``member_sd``), as the module that names the metric gives it
+  (:func:`evaluation.metrics.units`); Acc is in percent, skill, ``change_error_scaled``, ``error_in_spreads`` and
+  ``vs_members`` are ratios.
 
 A rollout that blew up leaves its figures NaN, its sims named (``blown_up_sims``); an undefined value on one
 side only is counted (``n_undefined_prediction``, ``n_undefined_truth``) and named (``undefined_sims``).
@@ -45,7 +49,7 @@ MSE = "rollout MSE"
 BASELINE, ENSEMBLE = "constant_velocity", "dem_ensemble"
 LENGTH_UNITS = ("m",)
 
-COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "acc_ci_low", "acc_ci_high", "acc_frames",
+COLUMNS = ["scene", "method", "metric", "unit", "sim", "acc_percent", "acc_ci_low", "acc_ci_high", "acc_frames",
            "acc_pooled_percent", "mse", "mse_ci_low", "mse_ci_high", "change_error", "change_error_ci_low",
            "change_error_ci_high", "change_scale", "change_scale_kind", "change_error_scaled", "skill",
            "skill_ci_low", "skill_ci_high", "ensemble_spread", "error_in_spreads", "vs_members", "member_sd",
@@ -148,8 +152,6 @@ def figure_row(kind: str, method: str, c: Curves, figure: np.ndarray, context: d
     name = value_columns(kind)
     value, low, high = mean_and_interval(figure, draws, intervals)
     row = {name: value, f"{name}_ci_low": low, f"{name}_ci_high": high}
-    if kind == "mse":
-        row["mean_prediction"] = value
     reference = context["reference"]
     if reference is not None:
         skill, low, high = skill_and_interval(figure, reference, draws, intervals)
@@ -200,7 +202,8 @@ def metric_rows(metric: str, group: pd.DataFrame, sims: list[str], context: dict
     rows = []
     for method, part in methods.items():
         c, bad = curves[method], [s for s, b in zip(sims, blown[method], strict=True) if b]
-        base = {"scene": part["scene"].iloc[0], "method": method, "metric": metric, "sim": "all",
+        base = {"scene": part["scene"].iloc[0], "method": method, "metric": metric,
+                "unit": context["units"].get(metric, ""), "sim": "all",
                 "n_sims": len(sims), "n_frames": int(len(part)), "n_blown_up": len(bad),
                 "blown_up_sims": " ".join(bad)}
         if kind == "plausibility":
@@ -215,7 +218,7 @@ def metric_rows(metric: str, group: pd.DataFrame, sims: list[str], context: dict
             row["n_frames_left_out"] = int(np.isnan(c.prediction).sum())
         rows.append(row)
         if kind == "mse":
-            rows += [{**base, "sim": s, "mse": v, "mean_prediction": v, "n_sims": 1,
+            rows += [{**base, "sim": s, "mse": v, "n_sims": 1,
                       "n_frames": int((part["sim"] == s).sum()), "n_blown_up": int(b), "blown_up_sims": s if b else ""}
                      for s, v, b in zip(sims, figures[method], blown[method], strict=True)]
     return rows
@@ -242,13 +245,15 @@ def summarise(steps: pd.DataFrame, frames: list[int] | None = None, intervals: I
               units: dict[str, str] | None = None) -> pd.DataFrame:
     """metrics.csv rows of a per-step table (module docstring): per method and metric over all sims
     (``sim = all``), plus the rollout MSE per sim. ``frames``: the taus of the article-style Acc (every
-    predicted frame when None); ``intervals``: the bootstrap (default: the config's); ``units``: each metric's
-    unit (default: every registered scene's), which decides how a change error is scaled."""
+    predicted frame when None); ``intervals``: the bootstrap (default: the config's); ``units``: units of metrics
+    beside (or instead of) those the steps' scene registers (:func:`evaluation.metrics.units`): the ``unit``
+    column, and what decides how a change error is scaled."""
     from evaluation.metrics import units as metric_units
     intervals = intervals or default_intervals()
     sims = list(dict.fromkeys(steps["sim"]))
+    scene = str(steps["scene"].iloc[0]) if "scene" in steps and len(steps) else None
     context = {"frames": frames, "intervals": intervals, "draws": intervals.draws(len(sims)),
-               "units": metric_units() if units is None else units}
+               "units": {**metric_units(scene), **(units or {})}}
     steps = steps if "member" in steps else steps.assign(member=0)
     rows = []
     for metric, group in steps.groupby("metric", sort=False):

@@ -9,6 +9,9 @@ import numpy as np
 
 from generators import engines, h5md, record, scenes
 
+# the engines' kinetic energy of the moving particles, translational and rotational (2D: discs of unit thickness)
+ENERGY_UNIT = "J"
+
 
 def trajectory(raw_dir: Path) -> h5md.Trajectory:
     raw_dir = Path(raw_dir)
@@ -34,20 +37,23 @@ def trajectory(raw_dir: Path) -> h5md.Trajectory:
     if rec.log_scaled_properties:
         parameters["log_scaled_properties"] = list(rec.log_scaled_properties)
     n = len(species)
-    observables = {}
+    observables, units = {}, {}
     if rec.kinetic_energy is not None and len(rec.kinetic_energy) == len(raw["step"]):
-        observables["kinetic_energy"] = np.asarray(rec.kinetic_energy, float)
+        observables["kinetic_energy"], units["kinetic_energy"] = np.asarray(rec.kinetic_energy, float), ENERGY_UNIT
     for name, values in rec.observables.items():
         if len(values) != len(raw["step"]):
             raise h5md.H5MDError(f"{raw_dir}: observable {name!r} has {len(values)} values for {len(raw['step'])} "
                                  "frames")
-        observables[name] = np.asarray(values, float)
+        if name not in scene.observable_units:
+            raise h5md.H5MDError(f"{raw_dir}: observable {name!r} has no unit: the {scene.name} scene declares units "
+                                 f"for {sorted(scene.observable_units) or 'no observables'} (Scene.observable_units)")
+        observables[name], units[name] = np.asarray(values, float), scene.observable_units[name]
     return h5md.Trajectory(
         position=np.asarray(raw["position"]).astype(np.float32), time=np.asarray(raw["time"]), step=raw["step"],
         species=species, radius=raw["radius"], mass=raw["mass"], kinematic=kinematic,
         box_lower=np.asarray(rec.box_lower), box_upper=np.asarray(rec.box_upper), boundary=("none",) * scene.dim,
         properties=np.tile(np.asarray([rec.properties[k] for k in names], np.float32), (n, 1)) if names else None,
-        property_names=names, parameters=parameters, observables=observables)
+        property_names=names, parameters=parameters, observables=observables, observable_units=units)
 
 
 def convert(raw_dir: Path, out: Path) -> Path:

@@ -9,10 +9,12 @@ Layout::
     /particles/all/{species i4, radius f4, mass f4, kinematic bool}   [N]
     /particles/all/properties      [N, F] f4, attribute names (optional)
     /parameters                    attributes: every scene/DEM parameter and the provenance
-    /observables/<name>/{value, step, time}                           (optional)
+    /observables/<name>/{value [T] f8 with its unit, step, time}        (optional)
 
-Every ``step`` and ``time`` beside position's (box edges, observables) is a hard link to position's. Files
-written before the units module was declared hold ``box/edges`` as a dataset [D]; they read as before.
+Every ``step`` and ``time`` beside position's (box edges, observables) is a hard link to position's. Every
+observable's ``value`` carries the units module's ``unit`` attribute (``Trajectory.observable_units``; one is
+refused without it). Files written before the units module was declared hold ``box/edges`` as a dataset [D]; they
+read as before, and so do files whose observables have no unit (none in ``observable_units``).
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ class Trajectory:
     property_names: tuple[str, ...] = ()
     parameters: dict = field(default_factory=dict)
     observables: dict[str, np.ndarray] = field(default_factory=dict)   # name -> [T]
+    observable_units: dict[str, str] = field(default_factory=dict)     # name -> its SI unit ("J", "N", "Pa", "m")
 
     @property
     def dim(self) -> int:
@@ -240,9 +243,20 @@ def write(path: str | Path, traj: Trajectory, author: str = "graphdem", allow_no
                 params.attrs[key] = _attr_value(value)
             for name, values in traj.observables.items():
                 obs = f.create_group(f"observables/{name}")
-                obs.create_dataset("value", data=np.asarray(values, np.float64))
+                _set_unit(obs.create_dataset("value", data=np.asarray(values, np.float64)),
+                          _observable_unit(traj, name, path))
                 _link_step_time(obs, pos)
     return path
+
+
+def _observable_unit(traj: Trajectory, name: str, path: Path) -> str:
+    """The unit of observable ``name``: a non-empty ASCII string (the units module's unit string, e.g. ``J``; ``1``
+    for a number without dimension)."""
+    unit = traj.observable_units.get(name)
+    if not isinstance(unit, str) or not unit.strip() or not unit.isascii():
+        raise H5MDError(f"{path}: observable {name!r} has no unit (observable_units[{name!r}] = {unit!r}); give its "
+                        "SI unit as ASCII text, e.g. 'J' (the units module puts it on observables/<name>/value)")
+    return unit
 
 
 #: what a file may make its reader allocate (every dataset and attribute read, decompressed, plus one chunk of each
@@ -324,10 +338,11 @@ def _properties(f: h5py.File, path: Path, budget: hdf5_guard.Budget) -> tuple[np
     return props[()], tuple(_text(n) for n in np.atleast_1d(names))
 
 
-def _observables(f: h5py.File, path: Path, budget: hdf5_guard.Budget, frames_shape, sel) -> dict[str, np.ndarray]:
-    """Every observable's value, one per frame, at the frames ``sel``."""
+def _observables(f: h5py.File, path: Path, budget: hdf5_guard.Budget, frames_shape,
+                 sel) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Every observable's value, one per frame, at the frames ``sel``, and the units of those that have one."""
     group = _group(f, "observables", path, required=False)
-    observables = {}
+    observables, units = {}, {}
     for name in (group.keys() if group is not None else ()):
         key = f"observables/{name}/value"
         element = hdf5_guard.node(f, f"observables/{name}", path)
@@ -335,7 +350,10 @@ def _observables(f: h5py.File, path: Path, budget: hdf5_guard.Budget, frames_sha
         if value is None or value.shape != frames_shape:
             raise H5MDError(f"{path}: {key} must be a numeric dataset of shape {frames_shape}, one value per frame")
         observables[name] = value[()][sel]
-    return observables
+        unit = hdf5_guard.attribute(value, "unit", key, path, budget)
+        if unit is not None:
+            units[name] = _text(unit)
+    return observables, units
 
 
 def _parameters(f: h5py.File, path: Path, budget: hdf5_guard.Budget) -> dict:
@@ -379,13 +397,14 @@ def read(path: str | Path, frames: slice | None = None, allow_nonfinite: bool = 
             frames_shape = sets["particles/all/position/time"].shape
             lower, upper, boundary = _box(f, path, budget, frames_shape)
             props, names = _properties(f, path, budget)
+            observables, observable_units = _observables(f, path, budget, frames_shape, sel)
             traj = Trajectory(
                 position=sets["particles/all/position/value"][sel], time=sets["particles/all/position/time"][sel],
                 step=sets["particles/all/position/step"][sel], species=sets["particles/all/species"][()],
                 radius=sets["particles/all/radius"][()], mass=sets["particles/all/mass"][()],
                 kinematic=sets["particles/all/kinematic"][()], box_lower=lower, box_upper=upper, boundary=boundary,
                 properties=props, property_names=names, parameters=_parameters(f, path, budget),
-                observables=_observables(f, path, budget, frames_shape, sel))
+                observables=observables, observable_units=observable_units)
     except H5MDError:
         raise
     except hdf5_guard.Refused as exc:

@@ -169,8 +169,12 @@ class Scene(ABC):
 
     def observables(self, row: dict, setup: dem.Setup, frames: dem.Frames) -> dict[str, np.ndarray]:
         """Per-frame observables of a sim (name -> [T]) for the H5MD file's /observables, from the engine's
-        frames; default: none (kinetic energy is stored for every scene by convert)."""
+        frames; default: none (kinetic energy is stored for every scene by convert). Each has its SI unit in
+        :attr:`observable_units`."""
         return {}
+
+    #: the SI unit of each of :meth:`observables` (the H5MD ``unit`` attribute of its value)
+    observable_units: ClassVar[dict[str, str]] = {}
 
     #: properties the dataset normalises in log space
     log_scaled_properties: ClassVar[tuple[str, ...]] = ()

@@ -61,7 +61,7 @@ def _tree(folder) -> list[str]:
 
 def test_sims_named_with_markup_are_evaluated_and_plotted_as_named(model, tmp_path):
     assert cli.main(_argv(model, tmp_path)) == 0
-    assert _tree(tmp_path) == ["metrics.csv", "metrics.html", "new", "new/steps.csv", "plots",
+    assert _tree(tmp_path) == ["metrics.config.json", "metrics.csv", "metrics.html", "new", "new/steps.csv", "plots",
                                "plots/metrics_over_frames.png", "plots/rollout.gif"]
     table = pd.read_csv(tmp_path / "metrics.csv")
     assert set(NAMES) < set(table["sim"])

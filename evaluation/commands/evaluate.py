@@ -61,12 +61,13 @@ def run_evaluate(args) -> None:
         print(f"NOTE: {note}")
     if args.rollouts is not None and len(args.history) > 1:
         raise SystemExit("graphdem evaluate: --rollouts holds rollouts of one K; give one --history with it")
-    table, steps, sims = _protocols(args, split, data, note)
-    _write_outputs(args, table, steps, sims, split)
+    table, steps, sims, config = _protocols(args, split, data, note)
+    _write_outputs(args, table, steps, sims, split, config)
 
 
-def _write_outputs(args, table, steps, sims, split: str) -> None:
-    """--out, --per-step, --table-html and the --plots: all of them or none. Each is written under a temporary
+def _write_outputs(args, table, steps, sims, split: str, config) -> None:
+    """--out with its config sidecar (evaluation/config_sidecar.py), --per-step, --table-html and the --plots: all
+    of them or none. Each is written under a temporary
     name and they are renamed into place together once every one is written: a failed write (a full disk, a
     file-size limit, a plot that fails) leaves the previous outputs as they were, and the error names the file."""
     from evaluation import evaluate
@@ -74,7 +75,7 @@ def _write_outputs(args, table, steps, sims, split: str) -> None:
     scene = str(table["scene"].iloc[0])
     name = str(sims[0].traj.parameters.get("dataset", scene))
     with atomic_outputs() as output:
-        metrics = evaluate.write(table, steps, args.out, args.per_step, output)
+        metrics = evaluate.write(table, steps, args.out, args.per_step, output, config)
         if args.table_html:
             from evaluation import metrics_table
             with output(args.table_html) as tmp:
@@ -101,13 +102,13 @@ def _split(args) -> tuple[str, list, str]:
 
 def _protocols(args, split: str, data, note: str):
     """One protocol per K of --history, stacked (the ``history`` column tells them apart): the metrics, the
-    per-step table, and the first protocol's sims."""
+    per-step table, the first protocol's sims and the config scored (the same checkpoints under every K)."""
     import pandas as pd
 
     from evaluation import evaluate
-    tables, per_step, first = [], [], None
+    tables, per_step, first, config = [], [], None, None
     for k in args.history:
-        table, steps, sims = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
+        table, steps, sims, config = evaluate.evaluate(args.checkpoint, data, k, rollouts_dir=args.rollouts,
                                                body_displacement=args.body_displacement, frames=args.frames,
                                                ensemble_dir=args.ensemble,
                                                threads=args.threads, progress=not args.no_progress, split=split,
@@ -118,7 +119,7 @@ def _protocols(args, split: str, data, note: str):
         per_step.append(steps)
         first = first or sims
         print(f"K = {k}:\n{evaluate.report(table)}")
-    return pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first
+    return pd.concat(tables, ignore_index=True), pd.concat(per_step, ignore_index=True), first, config
 
 
 def _plots(args, steps, sims, name: str, split: str, output, nominal_time: bool) -> None:
@@ -150,7 +151,15 @@ def _plots(args, steps, sims, name: str, split: str, output, nominal_time: bool)
 
 
 def run_combine(args) -> None:
+    """Stack CSV tables of the same columns (e.g. one metrics.csv per protocol K) in the order given; --union:
+    tables of different columns, blank where a table has no such column. Where the rows name one config
+    (config_sha) and a table's config sidecar holds it, it is written beside --out too (docs/surrogate.md)."""
+    from evaluation import config_sidecar
     from evaluation.evaluate import combine
     table = combine(args.tables, union=args.union)
     options.write_table(table, args.out)
     print(f"{args.out}: {len(table)} rows from {len(args.tables)} tables")
+    shas = table["config_sha"].dropna().astype(str).tolist() if "config_sha" in table else []
+    carried = config_sidecar.carry(args.tables, shas, args.out)
+    if carried:
+        print(carried)

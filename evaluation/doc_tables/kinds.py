@@ -153,21 +153,23 @@ def error_of(row: dict) -> Quantity:
 
 def summary(table: pd.DataFrame) -> str:
     """results/<scene>/metrics.csv in brief (the README's table): a row per metric that has an error figure (the
-    rollout MSE, each scene metric's change error, each compared metric), with Graph-DEM's error, the DEM
+    rollout MSE, each scene metric's change error, each compared metric), named with its unit (the CSV's ``unit``
+    column), with Graph-DEM's error, the DEM
     ensemble members' error, Graph-DEM's skill against constant velocity, its error in ensemble spreads, and
     the article's Acc of Graph-DEM and of constant velocity; intervals where the CSV has them."""
     from evaluation.evaluate import BASELINE, CAPPED, DROPPED, ENSEMBLE, MODEL, SECONDS
-    from evaluation.metrics import plausibility, units
+    from evaluation.metrics import plausibility, shown, units
     skipped = {SECONDS, CAPPED, DROPPED, *plausibility.AGGREGATE}       # timings; plausibility: the metrics table
     overall = table[table["sim"] == "all"]
-    unit = units()
+    registered = units()                          # for a CSV written before it had a unit column
     rows = []
     for k, several, metric, by_method in by_metric(overall):
         model = by_method.get(MODEL)
         if model is None or metric in skipped:
             continue
         error = error_of(model)
-        label = f"{metric} ({unit.get(metric, '').replace('$^2$', '²') or '-'})" + (f", K = {k}" if several else "")
+        unit = model["unit"] if isinstance(model.get("unit"), str) else registered.get(metric, "")
+        label = f"{metric} ({shown(unit) or '-'})" + (f", K = {k}" if several else "")
         rows.append([label, error.cell(model), error.cell(by_method.get(ENSEMBLE)), SKILL.cell(model),
                      SPREADS.cell(model) if finite(model.get("error_in_spreads")) else "",
                      ACC.cell(model) if finite(model.get("acc_percent")) else "",

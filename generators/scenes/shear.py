@@ -42,7 +42,9 @@ UPPER = "upper"            # the held upper half's box spheres (simulate only)
 PLATEN_GROUP = "platen"    # the platen's spheres (simulate only)
 PLATEN_CLEARANCE = 0.5     # wall radii between the platen's outer spheres and the box's inner faces
 FORCE_SAMPLES = 10        # the forces of a frame: the mean of 10 equally spaced steps of its interval
-OBSERVABLES = ("shear_force", "shear_stress", "shear_displacement", "normal_stress", "normal_displacement")
+# the per-frame observables (module docstring) and their SI units
+OBSERVABLES = {"shear_force": "N", "shear_stress": "Pa", "shear_displacement": "m", "normal_stress": "Pa",
+               "normal_displacement": "m"}
 FILL_FACTOR = 2.0          # the loose soil is poured up to this many box heights, then trimmed at H
 
 
@@ -276,6 +278,7 @@ class Shear(Scene):
     kinematic_species = (BOX, PLATEN)
     metrics = ShearMetrics
     log_scaled_properties = ("young", "normal_stress")
+    observable_units = OBSERVABLES
 
     def packings(self, cfg: dict) -> list[dict]:
         """The one packing every sim shares: settled with the stiffest swept modulus.

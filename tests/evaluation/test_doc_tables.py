@@ -13,21 +13,21 @@ from evaluation.doc_tables import blocks, kinds
 from graphdem import cli
 
 NAN = math.nan
-# metrics.csv's columns before the evaluation gained skill, change errors and intervals (such a CSV still renders),
-# then the provenance evaluate adds to every row
+# metrics.csv's columns before the evaluation gained skill, change errors, intervals and units (such a CSV still
+# renders), then the provenance evaluate adds to every row (the config itself lies beside the CSV: config_sidecar)
 COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
            "mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims",
-           "split", "split_note", "history", "checkpoint", "checkpoint_sha", "config_sha", "code_version", "config"]
-PROVENANCE = ("test", NAN, 6, "best.pt", "15792618e549", "001234567890", "0.1.0+abc123def456", "{}")
+           "split", "split_note", "history", "checkpoint", "checkpoint_sha", "config_sha", "code_version"]
+PROVENANCE = ("test", NAN, 6, "best.pt", "15792618e549", "001234567890", "0.1.0+abc123def456")
 ROWS = [  # method, metric, sim, acc, acc_frames, pooled, mse, truth, prediction, sims, frames, left out, blown, which
-    ("graphdem", "rollout MSE", "all", NAN, NAN, NAN, 0.54812, NAN, 0.54812, 2, 28, NAN, 0, ""),
-    ("constant_velocity", "rollout MSE", "all", NAN, NAN, NAN, 1.88049, NAN, 1.88049, 2, 28, NAN, 0, ""),
-    ("dem_ensemble", "rollout MSE", "all", NAN, NAN, NAN, 0.44714, NAN, 0.44714, 2, 28, NAN, 0, ""),
+    ("graphdem", "rollout MSE", "all", NAN, NAN, NAN, 0.54812, NAN, NAN, 2, 28, NAN, 0, ""),
+    ("constant_velocity", "rollout MSE", "all", NAN, NAN, NAN, 1.88049, NAN, NAN, 2, 28, NAN, 0, ""),
+    ("dem_ensemble", "rollout MSE", "all", NAN, NAN, NAN, 0.44714, NAN, NAN, 2, 28, NAN, 0, ""),
     ("graphdem", "Max Ht", "all", 99.2173, "1-14", 97.93, NAN, 38.0412, 37.7, 2, 28, 0, 0, ""),
     ("constant_velocity", "Max Ht", "all", NAN, NAN, NAN, NAN, 38.0412, NAN, 2, 28, 0, 1, "slide_0003"),
     ("graphdem", "Dis", "all", NAN, NAN, NAN, NAN, NAN, 55.3149, 2, 28, 0, 0, ""),
     ("graphdem", "seconds per frame", "all", NAN, NAN, NAN, NAN, NAN, 0.0131, 2, NAN, NAN, NAN, ""),
-    ("graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, 0.61, NAN, 0.61, 1, 14, NAN, 0, ""),
+    ("graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, 0.61, NAN, NAN, 1, 14, NAN, 0, ""),
 ]
 # some of the columns the evaluation gained: skill, errors in ensemble spreads and bootstrap intervals
 _ = NAN
@@ -139,7 +139,7 @@ def test_a_metrics_csv_of_the_evaluations_own_summary(repo):
              + per_step("dem_ensemble", metric, {"a": 0.4, "b": 0.4}, member=1)]
     table = summarise(pd.DataFrame(steps), intervals=Intervals(samples=200, level=0.95, seed=0), units={"Max Ht": "m"})
     csv = repo["root"] / "results" / "slide" / "metrics.csv"
-    table.assign(**dict(zip(COLUMNS[-8:], PROVENANCE, strict=True))).to_csv(csv, index=False)
+    table.assign(**dict(zip(COLUMNS[-7:], PROVENANCE, strict=True))).to_csv(csv, index=False)
     write(repo)
     _, rows = generated(repo["doc"])
     read = pd.read_csv(csv).query("sim == 'all'").set_index(["metric", "method"])
@@ -311,3 +311,7 @@ def test_the_readmes_summary_gives_each_metrics_error_skill_and_spreads_from_the
     assert member.startswith("0.3 ") and skill.startswith(f"{model.at['Max Ht', 'skill']:{kinds.SCORE}} [")
     assert spreads == f"{model.at['Max Ht', 'error_in_spreads']:{kinds.SCORE}}" and acc.endswith("]")
     assert rows["rollout MSE (m²)"][0].startswith(f"{model.at['rollout MSE', 'mse']:{kinds.NUMBER}} [")
+    # each metric is named with the CSV's own unit column, not a registry's
+    relabelled = kinds.summary(table.assign(unit=table["unit"].replace({"m": "cm"})))
+    assert [line.split(" | ")[0].strip("| ") for line in relabelled.splitlines()[2:]] == \
+        ["rollout MSE (m²)", "Max Ht (cm)"]

@@ -42,6 +42,19 @@ def test_evaluate_cli_writes_mse_per_sim_and_scene_metrics(tiny_dataset, trained
     assert {"Slide Num", "Max Ht", "Mean Ht", "Tongue Dis", "Dis", "Dis mean", "seconds per frame"} <= metrics
     assert set(table["method"]) == {"graphdem", "constant_velocity"}
     assert table["checkpoint_sha"].nunique() == 1 and table["code_version"].str.startswith("0.1.0").all()
+    # every row names its unit; the rollout MSE's one figure is its mse (no copy in mean_prediction)
+    units = table.drop_duplicates("metric").set_index("metric")["unit"]
+    assert (units["rollout MSE"], units["Max Ht"], units["Slide Num"], units["seconds per frame"],
+            units["Kinetic energy"], units["Max overlap"]) == ("m^2", "m", "particles", "s", "J", "radii")
+    assert table["unit"].notna().all() and table.loc[table["metric"] == "rollout MSE", "mean_prediction"].isna().all()
+    # the config lies beside the table once, under the digest every row names (the checkpoint's config digest)
+    from evaluation import config_sidecar, tables
+    from surrogate import checkpoint, ensemble
+    assert "config" not in table.columns and "config" not in pd.read_csv(tmp_path / "steps.csv").columns
+    sha = tables.read_csv(out)["config_sha"].unique()
+    meta = checkpoint.simulator_from(trained, "cpu")[1]
+    assert list(sha) == [ensemble.config_digest([meta])]
+    assert config_sidecar.read(out, sha[0]) == config_sidecar.config_of([meta])
     steps = pd.read_csv(tmp_path / "steps.csv")
     assert set(steps["tau"]) == set(range(1, 10 - 4 + 1))
     assert (tmp_path / "plots" / "rollout.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")

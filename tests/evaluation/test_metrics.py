@@ -16,9 +16,17 @@ def test_each_scene_s_metric_class_and_none_for_data_of_no_scene():
 
 def test_every_metric_has_its_unit():
     units = metrics.units()
-    assert units["rollout MSE"] == "m$^2$" and units["Runout"] == "m" and units["Profile dev"] == "m"
+    assert units["rollout MSE"] == "m^2" and units["Runout"] == "m" and units["Profile dev"] == "m"
     for name in scenes.names():
         for metric, unit in scenes.get(name).metrics.units.items():
             assert units[metric] == unit
+            assert metrics.units(name)[metric] == unit
     for metric, unit in plausibility.UNITS.items():
         assert units[metric] == unit
+
+
+def test_a_scene_s_units_are_its_own_and_print_with_a_superscript():
+    slide = metrics.units("slide")
+    assert slide["Slide Num"] == "particles" and slide["Kinetic energy"] == "J" and "Runout" not in slide
+    assert metrics.units("solidgn") == {"rollout MSE": "m^2", **plausibility.UNITS}   # no registered scene
+    assert metrics.shown("m^2") == "m²" and metrics.shown("particles") == "particles"

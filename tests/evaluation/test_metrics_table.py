@@ -9,25 +9,26 @@ import pandas as pd
 from evaluation import metrics_table
 
 NAN = math.nan
-COLUMNS = ["scene", "method", "metric", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
+COLUMNS = ["scene", "method", "metric", "unit", "sim", "acc_percent", "acc_frames", "acc_pooled_percent", "mse",
            "mean_truth", "mean_prediction", "n_sims", "n_frames", "n_frames_left_out", "n_blown_up", "blown_up_sims",
            "split", "split_note", "history"]
 ROWS = [
-    ("slide", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003", "test",
-     NAN, 6),
-    ("slide", "constant_velocity", "rollout MSE", "all", NAN, NAN, NAN, 2.25, NAN, 2.25, 1, 14, NAN, 0, NAN, "test",
-     NAN, 6),
-    ("slide", "graphdem", "Slide Num", "all", NAN, NAN, NAN, NAN, 18.5, NAN, 1, 14, 0, 1, "slide_0003", "test",
-     NAN, 6),
-    ("slide", "constant_velocity", "Slide Num", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, 14, 0, NAN, "test",
-     NAN, 6),
-    ("slide", "constant_velocity", "Max Ht", "all", 95.02, "1-14", 93.1, NAN, 34.66, 35.77, 1, 14, 0, 0, NAN,
+    ("slide", "graphdem", "rollout MSE", "m^2", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003",
      "test", NAN, 6),
-    ("slide", "constant_velocity", "Dis", "all", NAN, NAN, NAN, NAN, NAN, 28.26, 1, 14, 0, 0, NAN, "test", NAN, 6),
-    ("slide", "graphdem", "seconds per frame", "all", NAN, NAN, NAN, NAN, NAN, 0.013, 1, NAN, NAN, NAN, NAN, "test",
-     NAN, 6),
-    ("slide", "graphdem", "rollout MSE", "slide_0003", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1, "slide_0003",
+    ("slide", "constant_velocity", "rollout MSE", "m^2", "all", NAN, NAN, NAN, 2.25, NAN, NAN, 1, 14, NAN, 0, NAN,
      "test", NAN, 6),
+    ("slide", "graphdem", "Slide Num", "particles", "all", NAN, NAN, NAN, NAN, 18.5, NAN, 1, 14, 0, 1, "slide_0003",
+     "test", NAN, 6),
+    ("slide", "constant_velocity", "Slide Num", "particles", "all", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, 14, 0, NAN,
+     "test", NAN, 6),
+    ("slide", "constant_velocity", "Max Ht", "m", "all", 95.02, "1-14", 93.1, NAN, 34.66, 35.77, 1, 14, 0, 0, NAN,
+     "test", NAN, 6),
+    ("slide", "constant_velocity", "Dis", "m", "all", NAN, NAN, NAN, NAN, NAN, 28.26, 1, 14, 0, 0, NAN, "test", NAN,
+     6),
+    ("slide", "graphdem", "seconds per frame", "s", "all", NAN, NAN, NAN, NAN, NAN, 0.013, 1, NAN, NAN, NAN, NAN,
+     "test", NAN, 6),
+    ("slide", "graphdem", "rollout MSE", "m^2", "slide_0003", NAN, NAN, NAN, NAN, NAN, NAN, 1, 14, NAN, 1,
+     "slide_0003", "test", NAN, 6),
 ]
 HEADINGS = ["method", "metric", "sim", *(c for c in metrics_table.COLUMNS if c in COLUMNS), "why"]
 
@@ -57,10 +58,11 @@ def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
     rows = cells(page)
     value_columns = ["acc_percent", "mse", "mean_truth", "mean_prediction"]
     blown = rows[("graphdem", "rollout MSE", "all")]
-    assert values(blown, "acc_percent", "mse", "mean_prediction") == ["n/a", "undefined", "undefined"]
+    # the rollout MSE's one figure is its MSE: no mean prediction beside it
+    assert values(blown, "acc_percent", "mse", "mean_prediction") == ["n/a", "undefined", "n/a"]
     assert blown["why"] == "1 rollout(s) blew up: slide_0003" and blown["n_blown_up"] == "1 slide_0003"
     baseline = rows[("constant_velocity", "rollout MSE", "all")]
-    assert values(baseline, *value_columns) == ["n/a", "2.25", "n/a", "2.25"] and baseline["why"] == ""
+    assert values(baseline, *value_columns) == ["n/a", "2.25", "n/a", "n/a"] and baseline["why"] == ""
     assert values(baseline, "acc_frames", "acc_pooled_percent") == ["n/a", "n/a"]
     flagged = rows[("graphdem", "Slide Num", "all")]        # truth defined, the rollout blew up
     assert values(flagged, *value_columns) == ["undefined", "n/a", "18.5", "undefined"] and "blew up" in flagged["why"]
@@ -79,6 +81,10 @@ def test_every_empty_cell_says_n_a_or_undefined_and_why(tmp_path):
                   "n_sims", "n_frames", "n_frames_left_out", "n_blown_up") == \
         ["n/a", "n/a", "n/a", "n/a", "n/a", "0.013", "1", "n/a", "n/a", "n/a"]
     assert rows[("graphdem", "rollout MSE", "slide_0003")]["mse"] == "undefined"
+    # each metric named with the CSV's unit (the timing's is in no metric module's registry), the MSE's in its heading
+    assert {"Max Ht (m)", "Slide Num (particles)", "seconds per frame (s)", "rollout MSE"} <= \
+        {label for _, label, _ in re.findall(r"<tr><td[^>]*>(.*?)</td><td[^>]*>(.*?)</td><td[^>]*>(.*?)</td>", page)}
+    assert "MSE (m²)" in page
     assert "<h2>Per sim</h2>" in page and "split test" in page and "K = 6" in page
 
 
@@ -86,10 +92,10 @@ def test_a_one_tau_frame_set_is_shown_as_the_tau_not_a_float(tmp_path):
     """The meteorite's ci window reaches only tau = 5 of Table 2's set: the column then holds '5' alone, which a
     plain CSV read beside an empty cell would turn into 5.0."""
     csv = tmp_path / "metrics.csv"
-    row = ("meteorite", "graphdem", "Imp Dep", "all", 91.5, "5", 90.0, NAN, 2.0, 1.83, 1, 5, 0, 0, NAN, "test",
+    row = ("meteorite", "graphdem", "Imp Dep", "m", "all", 91.5, "5", 90.0, NAN, 2.0, 1.83, 1, 5, 0, 0, NAN, "test",
            NAN, 6)
-    mse = ("meteorite", "graphdem", "rollout MSE", "all", NAN, NAN, NAN, 0.5, NAN, 0.5, 1, 5, NAN, 0, NAN, "test",
-           NAN, 6)                                  # no frame set: the column also holds an empty cell
+    mse = ("meteorite", "graphdem", "rollout MSE", "m^2", "all", NAN, NAN, NAN, 0.5, NAN, NAN, 1, 5, NAN, 0, NAN,
+           "test", NAN, 6)                          # no frame set: the column also holds an empty cell
     pd.DataFrame([row, mse], columns=COLUMNS).to_csv(csv, index=False)
     page = metrics_table.write(csv, tmp_path / "metrics.html", "meteorite: metrics").read_text()
     assert cells(page)[("graphdem", "Imp Dep", "all")]["acc_frames"] == "5"

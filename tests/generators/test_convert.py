@@ -1,6 +1,7 @@
 """Convert a raw run folder into H5MD: a hand-written LAMMPS folder of a collapse sim (a fixed floor disc and two
 grains over three frames) comes out with the dumped positions, the fixed disc where the data file puts it, the
-record's parameters, properties and observables, and a folder the file cannot be made from is refused by name.
+record's parameters, properties and observables (each with the unit its scene declares), and a folder the file
+cannot be made from is refused by name.
 A write that fails (a file-size limit) or may not replace what is at the path (a folder) leaves that as it was,
 with one line naming the file."""
 
@@ -9,6 +10,7 @@ import resource
 import subprocess
 import sys
 
+import h5py
 import numpy as np
 import pytest
 
@@ -34,7 +36,7 @@ def _record(**extra) -> record.SimRecord:
                   dt_limit=1e-4, steps_per_frame=50, record_start_step=0, n_steps=100, window_steps=100,
                   frame_interval=50 * DT, packing="p0", box_lower=[0.0, 0.0], box_upper=[0.1, 0.05],
                   contact_model="linear", parameters={"floor_top": 0.004}, properties={"friction": 0.5},
-                  log_scaled_properties=[], kinetic_energy=[0.0, 1e-6, 2e-6], observables={"front": [1.0, 2.0, 3.0]})
+                  log_scaled_properties=[], kinetic_energy=[0.0, 1e-6, 2e-6], observables={})
     fields.update(extra)
     return record.SimRecord(**fields)
 
@@ -61,8 +63,9 @@ def test_a_raw_folder_becomes_the_trajectory_it_recorded(tmp_path):
     np.testing.assert_allclose(traj.properties, np.full((3, 1), 0.5))
 
 
-def test_parameters_and_observables_come_from_the_run_record(tmp_path):
-    traj = convert.trajectory(_raw(tmp_path))
+def test_parameters_and_observables_come_from_the_run_record(tmp_path, monkeypatch):
+    monkeypatch.setattr(collapse.SCENE, "observable_units", {"front": "m"})     # a scene observable, in metres
+    traj = convert.trajectory(_raw(tmp_path, _record(observables={"front": [1.0, 2.0, 3.0]})))
     p = traj.parameters
     assert p["id"] == "collapse_0001" and p["friction"] == 0.5 and p["floor_top"] == 0.004
     assert p["scene"] == "collapse" and p["engine"] == "lammps" and p["engine_version"] == "29 Sep 2021 - Update 2"
@@ -70,6 +73,10 @@ def test_parameters_and_observables_come_from_the_run_record(tmp_path):
     assert p["species_names"] == {"0": "floor", "1": "grain"} and "log_scaled_properties" not in p
     np.testing.assert_array_equal(traj.observables["kinetic_energy"], [0.0, 1e-6, 2e-6])
     np.testing.assert_array_equal(traj.observables["front"], [1.0, 2.0, 3.0])
+    assert traj.observable_units == {"kinetic_energy": "J", "front": "m"}
+    with h5py.File(h5md.write(tmp_path / "sim.h5", traj)) as f:              # the units module's unit attribute
+        assert {k: f[f"observables/{k}/value"].attrs["unit"] for k in f["observables"]} == \
+            {"kinetic_energy": "J", "front": "m"}
     # a kinetic energy of another length than the frames is left out, not stored misaligned
     short = convert.trajectory(_raw(tmp_path / "short", _record(kinetic_energy=[0.0, 1.0])))
     assert "kinetic_energy" not in short.observables
@@ -78,6 +85,9 @@ def test_parameters_and_observables_come_from_the_run_record(tmp_path):
 def test_a_folder_the_file_cannot_be_made_from_is_refused_by_name(tmp_path):
     with pytest.raises(h5md.H5MDError, match=r"observable 'front' has 2 values for 3 frames"):
         convert.trajectory(_raw(tmp_path / "a", _record(observables={"front": [1.0, 2.0]})))
+    with pytest.raises(h5md.H5MDError, match=r"observable 'front' has no unit: the collapse scene declares units "
+                                             r"for no observables"):
+        convert.trajectory(_raw(tmp_path / "u", _record(observables={"front": [1.0, 2.0, 3.0]})))
     packing = record.PackingRecord("collapse", {}, _record().run, DT, 1e-4, 10, 2, 1)
     raw = _raw(tmp_path / "b")
     record.write(raw / record.RUN_FILE, packing)

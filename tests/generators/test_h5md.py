@@ -14,7 +14,7 @@ def make_traj(t=5, n=4, d=2) -> h5md.Trajectory:
         kinematic=np.array([True, False, False, False][:n]),
         box_lower=np.zeros(d), box_upper=np.full(d, 10.0),
         parameters={"young": 1e9, "engine": "lammps", "profile": [[0, 1], [2, 3]], "dt": None},
-        observables={"kinetic_energy": np.linspace(0, 1, t)},
+        observables={"kinetic_energy": np.linspace(0, 1, t)}, observable_units={"kinetic_energy": "J"},
     )
 
 
@@ -128,7 +128,33 @@ def test_units_are_declared_by_the_units_module_and_are_si(tmp_path, d):
         "particles/all/position/value": "m", "particles/all/position/time": "s",
         "particles/all/box/edges/value": "m", "particles/all/box/edges/time": "s", "particles/all/box/lower": "m",
         "particles/all/radius": "m", "particles/all/mass": "kg", "observables/kinetic_energy/time": "s",
+        "observables/kinetic_energy/value": "J",
     }
+
+
+@pytest.mark.parametrize("units, shown", [({}, "None"), ({"kinetic_energy": ""}, "''"),
+                                           ({"kinetic_energy": "µJ"}, "'µJ'")])
+def test_an_observable_without_an_si_unit_is_not_written(tmp_path, units, shown):
+    """Every observable's value carries its unit: one without (or with one the units module cannot hold as ASCII)
+    is refused by name, and nothing is written."""
+    traj = make_traj()
+    traj.observable_units = units
+    with pytest.raises(h5md.H5MDError, match=rf"sim.h5: observable 'kinetic_energy' has no unit \(observable_units"
+                                             rf"\['kinetic_energy'\] = {shown}\)"):
+        h5md.write(tmp_path / "sim.h5", traj)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_every_observable_reads_back_with_its_unit(tmp_path):
+    traj = make_traj()
+    traj.observables["shear_force"] = np.arange(5.0)
+    traj.observable_units = {"kinetic_energy": "J", "shear_force": "N", "unused": "Pa"}   # a unit of none: not written
+    back = h5md.read(h5md.write(tmp_path / "sim.h5", traj))
+    assert back.observable_units == {"kinetic_energy": "J", "shear_force": "N"}
+    with h5py.File(tmp_path / "sim.h5") as f:
+        assert f["observables/shear_force/value"].attrs["unit"] == "N"
+        assert _is_vlen_ascii(f["observables/shear_force/value"], "unit")
+        assert "unit" not in f["observables/shear_force"].attrs      # on the value, as on position's
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -173,6 +199,7 @@ def test_new_layout_round_trip_keeps_every_number(tmp_path, d):
     assert back.boundary == traj.boundary and back.property_names == traj.property_names
     assert back.parameters == traj.parameters
     np.testing.assert_array_equal(back.observables["kinetic_energy"], traj.observables["kinetic_energy"])
+    assert back.observable_units == {"kinetic_energy": "J"}
     part = h5md.read(tmp_path / "sim.h5", frames=slice(1, 4))
     np.testing.assert_array_equal(part.position, traj.position[1:4])
     np.testing.assert_array_equal(part.box_upper, traj.box_upper)
@@ -213,6 +240,7 @@ def test_files_of_the_old_layout_still_read(tmp_path, d):
         np.testing.assert_array_equal(getattr(back, name), getattr(traj, name), err_msg=name)
     assert back.boundary == traj.boundary and back.parameters == {"engine": "lammps"}
     np.testing.assert_array_equal(back.observables["kinetic_energy"], traj.observables["kinetic_energy"])
+    assert back.observable_units == {}                  # written without one: none is made up
     write_old_layout(tmp_path / "older.h5", traj, lower=False)
     older = h5md.read(tmp_path / "older.h5")
     np.testing.assert_array_equal(older.box_lower, np.zeros(d))

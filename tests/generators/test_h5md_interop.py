@@ -20,7 +20,8 @@ def trajectory(d: int = 3, t: int = 7, n: int = 9) -> h5md.Trajectory:
         time=0.5 + np.arange(t) * 2.5e-3, step=1000 + np.arange(t) * 250, species=species,
         radius=rng.uniform(0.01, 0.02, n), mass=np.where(species == 0, 0.0, rng.uniform(0.1, 0.2, n)),
         kinematic=species == 0, box_lower=np.array([-0.25, 0.5, 1.0][:d]), box_upper=np.array([2.0, 3.5, 4.75][:d]),
-        boundary=("none",) * d, observables={"kinetic_energy": rng.uniform(0, 1, t)})
+        boundary=("none",) * d, observables={"kinetic_energy": rng.uniform(0, 1, t)},
+        observable_units={"kinetic_energy": "J"})
 
 
 @pytest.fixture

@@ -53,6 +53,7 @@ ENGINES = ("lammps", "yade")
 def test_observables_are_stored_per_frame(runs, name):
     for row, traj in runs[name]:
         assert set(shear.OBSERVABLES) <= set(traj.observables)
+        assert traj.observable_units == {"kinetic_energy": "J", **shear.OBSERVABLES}      # N, Pa, m: their units
         for key in shear.OBSERVABLES:
             assert traj.observables[key].shape == (len(traj.time),) and np.isfinite(traj.observables[key]).all()
         area = row["box"][0] * row["box"][1]

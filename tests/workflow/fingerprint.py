@@ -10,8 +10,9 @@ workflow's results/ folder) for every scene found there. Pinned per scene:
   positions); Graph-DEM's to a relative 1e-5: training on two torch threads is not bitwise
   repeatable (two runs of the same commit differ by ~1e-8 in the loss, and a fresh-clone run gave a
   meteorite rollout MSE 2.5e-6 apart from the pinned one), and torch's CPU kernels
-  round differently on CPUs with other vector units. Provenance columns (checkpoint digest, code
-  version) are left out.
+  round differently on CPUs with other vector units. Provenance columns (checkpoint digest, config
+  digest, code version) are left out; the config itself lies in the sidecar beside metrics.csv
+  (evaluation/config_sidecar.py), not in the table.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 import h5py
 import pandas as pd
 
-PROVENANCE = ("checkpoint", "checkpoint_sha", "config_sha", "code_version", "config")
+PROVENANCE = ("checkpoint", "checkpoint_sha", "config_sha", "code_version")
 
 
 def sweep_table(path: Path) -> dict:

@@ -20,7 +20,12 @@ runtime (clamp, contact correction), the DEM ensemble's members start at the las
 left out alike on both sides, and every figure gained its change error, skill, spreads and intervals; the sweeps,
 packings and positions stayed as they were, bit for bit. The packing keys were renamed when the settling's check
 interval became a config key (`settle_check`, read by the settling and so part of each packing's key): the same
-values as the constants before it, the same packings and positions bit for bit under new names."""
+values as the constants before it, the same packings and positions bit for bit under new names. metrics.csv's
+pinned rows changed in two columns only when its layout was tidied, every number and every other column as pinned
+before (checked against a ci run of that change): each row gained its ``unit`` (the unit of the metric's values),
+and the rollout MSE rows' ``mean_prediction``, a copy of their ``mse``, became empty (the MSE's figure is ``mse``
+alone). The ``config`` column left the table for the sidecar ``metrics.config.json``, whose digest every row's
+``config_sha`` names (checked here; neither was ever pinned: provenance)."""
 
 import json
 import math
@@ -54,6 +59,10 @@ def _same(got, want, relative: float, absolute: float = 0.0) -> bool:
 
 @pytest.mark.parametrize("scene", sorted(PINNED))
 def test_outputs_unchanged(ci_results, scene):
+    from evaluation import config_sidecar
+    from evaluation.tables import read_csv
+    shas = read_csv(ci_results / scene / "metrics.csv")["config_sha"].unique()
+    assert len(shas) == 1 and config_sidecar.read(ci_results / scene / "metrics.csv", shas[0])["model"]
     got, want = fingerprint(ci_results, scene), PINNED[scene]
     assert got["sweep"] == want["sweep"]
     assert got["packings"] == want["packings"]

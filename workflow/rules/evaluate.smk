@@ -1,7 +1,8 @@
 # Stage evaluate: scene metrics and rollout MSE of Graph-DEM beside constant velocity (docs/surrogate.md).
 # A scene scores its test sims from the rollout stage; a public benchmark rolls out its evaluation split
 # (test, or valid where the source has none, which every output then says) under each protocol K.
-# metrics.html is metrics.csv as the report's table, every empty cell named n/a or undefined.
+# metrics.html is metrics.csv as the report's table, every empty cell named n/a or undefined; metrics.config.json
+# the model config its rows name by config_sha (written by graphdem evaluate beside --out).
 rule evaluate:
     input:
         checkpoint="results/{name}/model/best.pt",
@@ -16,6 +17,7 @@ rule evaluate:
                      category=report_category, subcategory="evaluation",
                      labels={"figure": "metrics table", "scene": "{name}"}),
         per_step="results/{name}/metrics_per_step.csv",
+        config="results/{name}/metrics.config.json",      # the config metrics.csv's config_sha names
         frames=report("results/{name}/plots/metrics_over_frames.png", caption="../report/metrics_over_frames.rst",
                       category=report_category, subcategory="evaluation",
                       labels={"figure": "metrics over frames", "scene": "{name}"}),

@@ -13,7 +13,7 @@ from ...command_line import run
 
 def _metrics(path, mse, acc):
     rows = [{"scene": "slide", "method": "graphdem", "metric": "rollout MSE", "history": 6, "sim": "all", "mse": mse,
-             "acc_percent": math.nan, "mean_prediction": mse},
+             "acc_percent": math.nan, "mean_prediction": math.nan},
             {"scene": "slide", "method": "graphdem", "metric": "Runout", "history": 6, "sim": "all", "mse": math.nan,
              "acc_percent": acc, "mean_prediction": 1.0},
             {"scene": "slide", "method": "graphdem", "metric": "Runout", "history": 6, "sim": "slide_0001",
@@ -35,7 +35,7 @@ def test_two_seeds_give_each_metric_s_mean_and_spread(tmp_path, capsys):
     assert mse["values"] == "0:1 1:3"
     acc = table.loc[("Runout", "acc_percent")]
     assert (acc["mean"], acc["std"]) == (85.0, pytest.approx(math.sqrt(50)))
-    assert ("rollout MSE", "mean_prediction") not in table.index                   # it repeats the MSE
+    assert ("rollout MSE", "mean_prediction") not in table.index          # the MSE's figure is its mse alone
     assert "2 +- 1.4 (1 .. 3, 2 seeds)" in capsys.readouterr().out
 
 

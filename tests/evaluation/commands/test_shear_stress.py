@@ -31,7 +31,7 @@ def _sim(path, seed: int, frames: int = 5) -> None:
         radius=np.full(13, R), mass=np.where(species == 0, 0.0, 1e-3), kinematic=species == 0,
         box_lower=np.full(3, -0.1), box_upper=np.full(3, 0.1), parameters={
             "id": path.stem, "normal_stress": 2e4, "young": 2e7, "shear_area": 0.01},
-        observables={"shear_stress": 1e5 * overlap.mean(axis=1)}))
+        observables={"shear_stress": 1e5 * overlap.mean(axis=1)}, observable_units={"shear_stress": "Pa"}))
 
 
 def test_the_readout_is_fitted_on_the_split_s_sims_and_kept_at_its_best_epoch(tmp_path, capsys):
