@@ -158,18 +158,23 @@ def _runs(predictions: dict[str, np.ndarray], members: list[np.ndarray] | None) 
 
 
 def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[str, np.ndarray], history: int,
-          body_displacement: float | None = None, members: list[np.ndarray] | None = None) -> list[pd.DataFrame]:
+          body_displacement: float | None = None, members: list[np.ndarray] | None = None,
+          generic: bool = False) -> list[pd.DataFrame]:
     """Per-step rows of sim ``sim``: rollout MSE and the scene's metrics of every prediction
     (method name -> [T, N, D]) over the frames after the first ``history``; ``members``, the DEM ensemble's
     reruns started at the last given frame, are scored one by one (method dem_ensemble, each its member index)
-    and as their mean trajectory (dem_ensemble_mean), and give every row the members' spread."""
+    and as their mean trajectory (dem_ensemble_mean), and give every row the members' spread. ``generic``: the
+    generic metrics only, whatever scene the sims name (user data): rollout MSE and plausibility (overlaps,
+    particles outside the box and through a wall, kinetic energy). Plausibility comes with a scene's metrics too;
+    data of no registered scene, not generic, gets the rollout MSE alone."""
     scene = str(traj.parameters.get("scene", "unknown"))
     moving = ~np.asarray(traj.kinematic, bool)
     diameter = float(2.0 * np.mean(np.asarray(traj.radius, np.float64)[moving])) if moving.any() else float("nan")
-    cls = of_scene(scene)
+    cls = None if generic else of_scene(scene)
     metrics = cls.for_trajectory(traj, body_displacement) if cls is not None else None
+    plausible = generic or metrics is not None
     truth_values = metrics(truth) if metrics else {}
-    truth_plausibility = plausibility.of_trajectory(truth, traj) if metrics else {}
+    truth_plausibility = plausibility.of_trajectory(truth, traj) if plausible else {}
     spreads = member_spreads(members or [], [metrics(m) for m in members] if metrics and members else
                              [{} for _ in members or []], moving, history)
     rows = []
@@ -180,13 +185,13 @@ def score(sim: str, traj: h5md.Trajectory, truth: np.ndarray, predictions: dict[
             rows.append(_per_step(scene, method, sim, MSE, traj.time, None,
                                   rollout_mse(prediction, truth, moving, history), history,
                                   spread=spreads.get(MSE), **common))
-            if metrics is None:
+            if not plausible:
                 continue
-            for name, values in metrics(prediction).items():
+            for name, values in (metrics(prediction) if metrics else {}).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, truth_values[name][history:],
                                       values[history:], history, start=float(truth_values[name][history - 1]),
                                       spread=spreads.get(name), **common))
-            for name, values in metrics.compare(prediction, truth).items():
+            for name, values in (metrics.compare(prediction, truth) if metrics else {}).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, None, values[history:], history, **common))
             for name, values in plausibility.of_trajectory(prediction, traj).items():
                 rows.append(_per_step(scene, method, sim, name, traj.time, truth_plausibility[name][history:],
@@ -218,7 +223,8 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     Several checkpoints are scored as one model, their :class:`surrogate.ensemble.Ensemble`: the rows name
     every checkpoint (``checkpoint``, separated by spaces; ``checkpoint_sha``, joined by '+'), and the
     seconds per frame are the ensemble's. A model with a neighbour cap adds the rows ``capped receivers per
-    frame`` and ``dropped edges per frame`` (means over the sims).
+    frame`` and ``dropped edges per frame`` (means over the sims). A model trained on user data (its stats.json
+    records ``user_data``, docs/user-data.md) is scored by the generic metrics only (:func:`score`).
     """
     torch.set_num_threads(max(1, int(threads)))
     simulator, metas = ensemble.load(checkpoint_path, device)
@@ -232,6 +238,7 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
     sha = provenance.digest(checkpoint_path)
     cap = simulator.max_neighbours
     props = list(meta["model"].get("properties") or [])
+    generic = "user_data" in meta["stats"]
     per_step, sims = [], []
     member_dirs = [] if ensemble_dir is None else as_paths(ensemble_dir)
     box = (simulator.lower.double().cpu().numpy(), simulator.upper.double().cpu().numpy())
@@ -247,7 +254,8 @@ def evaluate(checkpoint_path: Path | list[Path], data: list[Path], history: int,
         if bad is not None:
             log.warning("%s: the Graph-DEM rollout is non-finite from frame %d on (counted, not skipped)", sim.id, bad)
         sims.append(entry)
-        per_step.extend(score(sim.id, traj, truth, entry.predictions, history, body_displacement, members))
+        per_step.extend(score(sim.id, traj, truth, entry.predictions, history, body_displacement, members,
+                              generic=generic))
     if not sims:
         raise ValueError(f"no H5MD sims to evaluate in {', '.join(map(str, data))}")
     steps = pd.concat(per_step, ignore_index=True)

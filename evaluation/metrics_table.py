@@ -42,6 +42,11 @@ INTERVALS = {"acc_percent": "acc", "mse": "mse", "change_error": "change_error",
              "mean_prediction": "mean_prediction"}
 # figures that exist only beside a reference: skill beside constant velocity, the rest beside a DEM ensemble
 COMPARED = ("skill", "error_in_spreads", "vs_members")
+# a table without the DEM ensemble (user data, the public benchmarks: no engine config to rerun their sims) shows
+# the ensemble's figures as n/a
+ENSEMBLE_METHOD, ENSEMBLE_FIGURES = "dem_ensemble", ("error_in_spreads", "vs_members")
+NO_ENSEMBLE = ("no DEM ensemble in this evaluation: only a scene's test sims are rerun by their engine (user data "
+               "and the public benchmarks have no engine config)")
 
 # The columns that apply to each kind of row; every other value column is n/a for it.
 APPLIES = {
@@ -151,9 +156,12 @@ def _number(column: str, value) -> str:
     return f"{float(value):.4g}"
 
 
-def cell(row: pd.Series, column: str, kind: str) -> tuple[str, str | None]:
-    """One value cell (the number, n/a or undefined) and, for undefined, why."""
+def cell(row: pd.Series, column: str, kind: str, ensemble: bool = True) -> tuple[str, str | None]:
+    """One value cell (the number, n/a or undefined) and, for undefined, why; without an ``ensemble`` in the table,
+    the DEM ensemble's figures are n/a."""
     value = row.get(column)
+    if not ensemble and column in ENSEMBLE_FIGURES and _is_nan(value):
+        return f'<td><span class="na" title="{html.escape(NO_ENSEMBLE)}">n/a</span></td>', None
     if column not in APPLIES[kind] and _is_nan(value):
         return f'<td><span class="na" title="{html.escape(NOT_APPLICABLE[kind])}">n/a</span></td>', None
     if _is_nan(value):
@@ -171,6 +179,7 @@ def cell(row: pd.Series, column: str, kind: str) -> tuple[str, str | None]:
 def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, set[str]]) -> str:
     from evaluation.metrics import shown as shown_unit
     out = []
+    ensemble = bool((table["method"] == ENSEMBLE_METHOD).any())
     for _, row in table.iterrows():
         kind = _kind(row, metric_names)
         unit = units.get(row["metric"], "") if _is_nan(row.get("unit")) else str(row["unit"])
@@ -178,7 +187,7 @@ def _rows(table: pd.DataFrame, units: dict[str, str], metric_names: dict[str, se
         label = html.escape(str(row["metric"]) + (f" ({unit})" if unit else ""))
         cells = [f'<td class="text">{html.escape(str(row["method"]))}</td>', f'<td class="text">{label}</td>',
                  f'<td class="text">{html.escape(str(row["sim"]))}</td>']
-        values = [cell(row, column, kind) for column in shown(table)]
+        values = [cell(row, column, kind, ensemble) for column in shown(table)]
         whys = list(dict.fromkeys(why for _, why in values if why))
         cells += [html_cell for html_cell, _ in values]
         cells.append(f'<td class="text why">{html.escape("; ".join(whys))}</td>')

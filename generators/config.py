@@ -24,7 +24,7 @@ from typing import Any
 import jsonschema
 import yaml
 
-from generators import config_checks, engines, property_sensitivity, scenes
+from generators import config_checks, engines, property_sensitivity, scenes, user_data
 from generators.errors import ConfigError, did_you_mean
 
 DEFAULTS = resources.files("generators").joinpath("defaults")
@@ -344,7 +344,8 @@ def _check_semantics(config: dict) -> None:
         property_sensitivity.values(name, cfg)
         _check_edge_features(name, cfg["model"])
         config_checks.check_section(name, scene, cfg, schema()["$defs"]["dem_scene"]["properties"]["n_sims"]["maximum"])
-    config_checks.check_seeds(config, [*scenes.names(), *BENCHMARKS])
+    config_checks.check_seeds(config, [*scenes.names(), *BENCHMARKS, "user"])
+    _check_user(config)
     for name in BENCHMARKS:
         bench = config[name]
         _check_edge_features(name, bench["model"])
@@ -352,6 +353,16 @@ def _check_semantics(config: dict) -> None:
             raise ConfigError(f"config key '{name}.protocols' = {bench['protocols']}: a protocol gives K frames and "
                               f"the model reads the last '{name}.model.history' = {bench['model']['history']} of "
                               f"them, so every K must be at least that")
+
+
+def _check_user(config: dict) -> None:
+    """The ``user`` section's split and model, and every ``user_data`` entry (generators/user_data.py), which is
+    left as its mapping of results name -> folder (a plain path becomes one entry named by its basename)."""
+    user = config["user"]
+    if abs(sum(user["split"]) - 1.0) > 1e-6:
+        raise ConfigError(f"config key 'user.split' = {user['split']} must sum to 1")
+    _check_edge_features("user", user["model"])
+    config["user_data"] = user_data.check(config["user_data"], [*scenes.names(), *BENCHMARKS], user["split"])
 
 
 def _check_edge_features(name: str, model: dict) -> None:

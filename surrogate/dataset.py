@@ -15,6 +15,12 @@ it drops, let a cap be chosen from the data.
 For R itself they record the next-frame contacts of the train split (``next_frame_contacts``), the share a
 graph of radius R misses (``contact_miss_rate``) and the floors R must exceed to miss at most 1 %, 0.1 %,
 0.01 % and none of them (``contact_miss_floor``; :mod:`surrogate.contacts`).
+
+A user-data set (any folder of H5MD sims, docs/user-data.md; :func:`build_user`) is split by
+:func:`generators.user_data.split_table`; every one of its sims is read and must hold the frames a training
+sample needs, R may be derived from the train split's radii (:func:`surrogate.derived.connectivity_radius`), and
+stats.json records the folder and the split's settings under ``user_data`` (the evaluation then scores the
+generic metrics only) and a derived R under ``derived``.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from tqdm import tqdm
 
 from generators import h5md
 from generators.atomic import atomic_path
+from surrogate import derived as derived_rules
 from surrogate.contacts import contact_distances, miss_floor, missed_at
 from surrogate.neighbours import Histogram, check_cap, neighbour_counts
 
@@ -156,9 +163,10 @@ def statistics(paths: list[Path], connectivity_radius: float, max_neighbours: in
     }
 
 
-def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float, max_neighbours: int | None = None) -> dict:
+def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float, max_neighbours: int | None = None,
+          extra: dict | None = None) -> dict:
     """Write splits.csv (id, split, path) and stats.json (train split only) into ``out_dir``; ``max_neighbours``
-    is the neighbour cap whose cut the stats report (null: none)."""
+    is the neighbour cap whose cut the stats report (null: none); ``extra``: keys stats.json records beside."""
     missing = {"id", "split", "path"} - set(splits.columns)
     if missing:
         raise ValueError(f"a split table needs the columns id, split and path; missing {sorted(missing)}")
@@ -166,6 +174,7 @@ def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float, max_n
     train = [Path(p) for p in splits.loc[splits["split"] == "train", "path"]]
     stats = statistics(train, connectivity_radius, max_neighbours)
     stats["splits"] = splits["split"].value_counts().to_dict()
+    stats.update(extra or {})
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(out_dir / "splits.csv") as tmp:
@@ -173,3 +182,45 @@ def build(splits: pd.DataFrame, out_dir: Path, connectivity_radius: float, max_n
     with atomic_path(out_dir / "stats.json") as tmp:
         tmp.write_text(json.dumps(stats, indent=2))
     return stats
+
+
+def mean_moving_radius(paths: list[Path]) -> float:
+    """The mean radius of the moving particles of the sims ``paths``, pooled over them (as stats.json's
+    ``property_stats.radius.mean``); only each sim's first two frames are read."""
+    radii = []
+    for path in paths:
+        traj = h5md.read(path, frames=slice(0, 2))
+        radii.append(np.asarray(traj.radius, np.float64)[~np.asarray(traj.kinematic, bool)])
+    pooled = np.concatenate(radii) if radii else np.zeros(0)
+    if not len(pooled):
+        raise ValueError(f"no moving particle in the {len(paths)} train sims: nothing to learn, and no mean diameter "
+                         "to derive the connectivity radius from")
+    return float(pooled.mean())
+
+
+def check_frames(paths: list[Path], min_frames: int) -> None:
+    """Every sim of ``paths`` is a readable H5MD file of at least ``min_frames`` frames (a history and the frames
+    predicted after it); raise ValueError naming the first that is not."""
+    for path in tqdm(paths, desc="check sims", unit="sim"):
+        frames = h5md.read(path).n_frames
+        if frames < min_frames:
+            raise ValueError(f"{path}: {frames} frames; a training sample is the model's history and the frame(s) "
+                             f"predicted after it, so each sim needs at least {min_frames} (model.history + "
+                             f"model.bundle): shorten the history or leave the sim out")
+
+
+def build_user(folder: Path, out_dir: Path, fractions: list[float], seed: int, connectivity_radius: float | None,
+               diameters: float, min_frames: int, max_neighbours: int | None = None) -> dict:
+    """The dataset of a user-data folder (module docstring): splits.csv and stats.json in ``out_dir``; R is
+    ``connectivity_radius``, or where None, ``diameters`` mean diameters of the train split's moving particles."""
+    from generators import user_data
+    table = user_data.split_table(folder, fractions, seed)
+    check_frames([Path(p) for p in table["path"]], min_frames)
+    extra = {"user_data": {"folder": str(folder), "fractions": list(fractions), "seed": int(seed)}}
+    if connectivity_radius is None:
+        radius = mean_moving_radius([Path(p) for p in table.loc[table["split"] == "train", "path"]])
+        connectivity_radius = derived_rules.connectivity_radius(radius, diameters)
+        extra["derived"] = {"connectivity_radius": {
+            "rule": "connectivity_diameters x mean diameter of the train split's moving particles",
+            "connectivity_diameters": float(diameters), "mean_diameter": 2.0 * radius}}
+    return build(table, out_dir, connectivity_radius, max_neighbours, extra)

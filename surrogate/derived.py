@@ -11,6 +11,11 @@ swamp the motion on another.
 ``train.ema_decay: auto``: the moving average of the weights spans ``train.ema_epochs`` epochs of optimiser
 steps, ``decay = 1 - 1 / max(1, ema_epochs x batches per epoch)``. On the benchmarks ``0.999`` (1000 steps)
 was measured at 1575 batches per epoch, so 0.63 epochs; a scene of 150 batches per epoch gets 0.989.
+
+``connectivity_radius: auto`` (user data, docs/user-data.md): the graph radius R is ``connectivity_diameters``
+times the mean diameter of the train split's moving particles, the way the scenes state theirs (2.5 mean diameters
+at the default scale of the slide, the meteorite and the collapse). The dataset stage derives it, and stats.json
+records the number and the rule's inputs under ``derived``.
 """
 
 from __future__ import annotations
@@ -33,6 +38,16 @@ def ema_decay(batches_per_epoch: int, epochs: float) -> float:
     if not epochs > 0:
         raise ValueError(f"train.ema_epochs is {epochs!r}; allowed: a number > 0")
     return 1.0 - 1.0 / max(1.0, float(epochs) * int(batches_per_epoch))
+
+
+def connectivity_radius(mean_radius: float, diameters: float) -> float:
+    """``diameters`` x the mean diameter (2 x ``mean_radius``) of the train split's moving particles (m)."""
+    if not diameters > 0:
+        raise ValueError(f"connectivity_diameters is {diameters!r}; allowed: a number > 0")
+    if not mean_radius > 0:
+        raise ValueError(f"the mean radius of the moving particles is {mean_radius!r}; allowed: a number > 0 (the "
+                         f"train split needs moving particles)")
+    return float(diameters * 2.0 * mean_radius)
 
 
 def resolve(train_cfg: dict, stats: dict, batches_per_epoch: int) -> dict:

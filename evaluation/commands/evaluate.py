@@ -54,7 +54,9 @@ def run_evaluate(args) -> None:
     the scene's metrics (docs/surrogate.md) where the scene is known, beside a constant-velocity baseline and, with
     --ensemble, the DEM ensemble (the DEM's own chaos). Acc is the article's, of the test-set mean curve
     (acc_percent), beside the pooled one (acc_pooled_percent). The sims are --data, or one split of a --splits
-    table. Several --checkpoint: their ensemble is scored as Graph-DEM."""
+    table. Several --checkpoint: their ensemble is scored as Graph-DEM. A model trained on user data (graphdem dataset
+    --user-data, docs/user-data.md) is scored by the generic metrics only, whatever scene its sims name: rollout MSE
+    and plausibility (overlaps, particles outside the box and through a wall, kinetic energy)."""
     options.log_to_stderr()
     split, data, note = _split(args)
     if note:

@@ -223,8 +223,10 @@ class Collapse(Scene):
         window = cfg["frame_interval"] * (cfg["frames"] - 1)
         if window < needed:
             raise ConfigError(f"config keys 'collapse.frames' = {cfg['frames']} and 'collapse.frame_interval' = "
-                              f"{cfg['frame_interval']} record {window:.3g} s; the tallest column (a = {a_max:g}) "
-                              f"comes to rest after about {REST_TIME:g} sqrt(H0/g) = {needed:.3g} s: record longer")
+                              f"{cfg['frame_interval']} record {window:.3g} s; the tallest column (a = {a_max:g} of "
+                              f"'collapse.sweep.aspect', 'collapse.column_width' = {cfg['column_width']:g}, "
+                              f"'collapse.gravity' = {cfg['gravity']:g}) comes to rest after about {REST_TIME:g} "
+                              f"sqrt(H0/g) = {needed:.3g} s: record longer")
 
     # ---- the runout law ----------------------------------------------------------------------------
 

@@ -4,6 +4,7 @@ contacts a graph of radius R, capped or not, would miss): surrogate/dataset.py a
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 from generators import cli as gcli
@@ -13,11 +14,26 @@ from surrogate.commands import options
 
 def register(sub) -> None:
     p = gcli.add_command(sub, "dataset", run_dataset, help="write splits.csv and stats.json (train split only)")
-    options.scene_or_benchmark(p, True, "the sims are of (the plot's title)")
-    p.add_argument("--table", type=split_table, required=True, help="sweep.csv or a split table (id, split[, path])")
+    options.scene_or_benchmark(p, True, "the sims are of (the plot's title)",
+                               user_data="a folder of H5MD sims of your own (*.h5; docs/user-data.md): split here, by "
+                                         "--fractions and --seed, instead of read from --table")
+    p.add_argument("--table", type=split_table, help="sweep.csv or a split table (id, split[, path]); with --scene or "
+                                                     "--benchmark")
     p.add_argument("--sims", type=input_path, help="folder of <id>.h5 files, for a table without a path column")
     p.add_argument("--out-dir", type=output_folder, required=True)
-    p.add_argument("--connectivity-radius", type=float, required=True, help="graph radius R (m)")
+    p.add_argument("--connectivity-radius", type=float,
+                   help="graph radius R (m); with --scene or --benchmark. With --user-data, default: the config's "
+                        "user.connectivity_radius, where auto --connectivity-diameters mean diameters of the train "
+                        "split's moving particles")
+    user = p.add_argument_group("user data (--user-data; defaults: the config's user section, docs/user-data.md)")
+    user.add_argument("--fractions", type=float, nargs=3, metavar=("TRAIN", "VALID", "TEST"),
+                      help="the split's fractions (user.split)")
+    user.add_argument("--seed", type=int, help="the split's shuffle (user.seed)")
+    user.add_argument("--connectivity-diameters", type=float, metavar="D",
+                      help="R = D mean diameters of the train split's moving particles, where no "
+                           "--connectivity-radius is given (user.connectivity_diameters)")
+    user.add_argument("--min-frames", type=int, metavar="N",
+                      help="frames every sim must hold (user.model.history + bundle: a training sample)")
     p.add_argument("--max-neighbours", type=int,
                    help="a neighbour cap (the model's max_neighbours): stats.json reports the share of receivers "
                         "it truncates and of edges it drops on the train split; default: no cap")
@@ -36,20 +52,50 @@ def register(sub) -> None:
 
 def run_dataset(args) -> None:
     """Split table and normalisation statistics of the train split. --table is a scene's sweep.csv (id, split; the
-    files are --sims/<id>.h5) or a split table with a path column, such as the one import-solidgn writes."""
+    files are --sims/<id>.h5) or a split table with a path column, such as the one import-solidgn writes. With
+    --user-data FOLDER instead (any folder of H5MD sims, docs/user-data.md): the folder's sims, sorted by name, split
+    by --fractions with the seeded shuffle of a scene's sweep, every sim checked to hold --min-frames frames, and R,
+    where not given, derived from the train split's radii; stats.json records the folder, and the evaluation of a
+    model trained on it scores the generic metrics only (rollout MSE, plausibility, kinetic energy)."""
     import pandas as pd
 
     from surrogate import dataset
-    table = pd.read_csv(args.table)
-    if "path" not in table.columns:
-        if args.sims is None:
-            raise SystemExit(f"graphdem dataset: {args.table} has no path column; give --sims, the folder of <id>.h5")
-        table = dataset.split_table(table, Path(args.sims))
-    stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius, args.max_neighbours)
+    if args.user_data is not None:
+        stats = _user_dataset(args)
+    else:
+        if args.table is None or args.connectivity_radius is None:
+            raise SystemExit("graphdem dataset: --table and --connectivity-radius are needed with --scene or "
+                             "--benchmark")
+        table = pd.read_csv(args.table)
+        if "path" not in table.columns:
+            if args.sims is None:
+                raise SystemExit(f"graphdem dataset: {args.table} has no path column; give --sims, the folder of "
+                                 "<id>.h5")
+            table = dataset.split_table(table, Path(args.sims))
+        stats = dataset.build(table, Path(args.out_dir), args.connectivity_radius, args.max_neighbours)
     print(json.dumps(stats, indent=2))
     _report(stats)
     if args.plot:
-        _plot_first_train_sim(args)
+        _plot_first_train_sim(args, args.name or Path(os.path.abspath(args.user_data)).name)
+
+
+def _user_dataset(args) -> dict:
+    """The dataset of --user-data: each setting left out taken from the package config's ``user`` section."""
+    from generators import config as gconfig
+    from surrogate import dataset
+    if args.table is not None or args.sims is not None:
+        raise SystemExit("graphdem dataset: --user-data splits its folder itself; --table and --sims go with --scene "
+                         "or --benchmark")
+    user = gconfig.load()["user"]
+    radius = args.connectivity_radius
+    if radius is None and user["connectivity_radius"] != "auto":
+        radius = float(user["connectivity_radius"])
+    model = user["model"]
+    min_frames = args.min_frames or model["history"] + model.get("bundle", 1)
+    return dataset.build_user(
+        Path(args.user_data), Path(args.out_dir), args.fractions or user["split"],
+        user["seed"] if args.seed is None else args.seed, radius,
+        args.connectivity_diameters or user["connectivity_diameters"], min_frames, args.max_neighbours)
 
 
 def _report(stats: dict) -> None:
@@ -74,8 +120,9 @@ def _report(stats: dict) -> None:
               f"coming; a larger connectivity_radius closes the gap (docs/surrogate.md)")
 
 
-def _plot_first_train_sim(args) -> None:
-    """--plot: the first train sim's first and last frame (3D: a vertical section through the middle)."""
+def _plot_first_train_sim(args, name: str) -> None:
+    """--plot: the first train sim's first and last frame (3D: a vertical section through the middle), titled by
+    ``name``."""
     import pandas as pd
 
     from generators import h5md, plots
@@ -84,7 +131,7 @@ def _plot_first_train_sim(args) -> None:
     traj = h5md.read(first["path"])
     names = {int(k): v for k, v in dict(traj.parameters.get("species_names") or {}).items()}
     position, radius, lower, upper = traj.position, traj.radius, traj.box_lower, traj.box_upper
-    title, ylabel = f"{args.name}: {first['id']}", "y (m)"
+    title, ylabel = f"{name}: {first['id']}", "y (m)"
     if traj.dim == 3:                       # a vertical section through the middle, seen from the side
         mid = 0.5 * float(lower[1] + upper[1])
         position, radius = plots.plane_section(position, radius, mid, axis=1)

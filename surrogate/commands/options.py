@@ -39,14 +39,17 @@ def checkpoint_and_data(p: argparse.ArgumentParser, data_required: bool = True, 
     device_option(p, "auto")
 
 
-def scene_or_benchmark(p: argparse.ArgumentParser, required: bool, what: str) -> None:
+def scene_or_benchmark(p: argparse.ArgumentParser, required: bool, what: str, user_data: str | None = None) -> None:
     """``--scene`` (a registered scene) or ``--benchmark`` (a public benchmark), never both, into ``args.name``:
-    ``what`` says what the subcommand takes of it."""
+    ``what`` says what the subcommand takes of it. With ``user_data`` (its help), the third choice ``--user-data
+    FOLDER`` (a folder of H5MD sims, docs/user-data.md) into ``args.user_data``."""
     from generators import scenes
     group = p.add_mutually_exclusive_group(required=required)
     group.add_argument("--scene", dest="name", choices=scenes.names(), help=f"the scene {what}")
     group.add_argument("--benchmark", dest="name", choices=sorted(gcli.gconfig.BENCHMARKS),
                        help=f"the public benchmark {what}")
+    if user_data:
+        group.add_argument("--user-data", type=input_path, metavar="FOLDER", help=user_data)
 
 
 def device_option(p: argparse.ArgumentParser, default: str | None) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 from generators import cli as gcli
@@ -15,8 +16,11 @@ from surrogate.commands import options
 def register(sub) -> None:
     p = gcli.add_command(sub, "train", run, help="train Graph-DEM (resumes an interrupted run in the same folder)",
                          epilog="Paths default to the workflow's: results/<name>/dataset/{stats.json,splits.csv} "
-                                "and results/<name>/model/, <name> the scene or public benchmark.")
-    options.scene_or_benchmark(p, False, "whose model and train sections to use")
+                                "and results/<name>/model/, <name> the scene or public benchmark, or the "
+                                "--user-data folder's name.")
+    options.scene_or_benchmark(p, False, "whose model and train sections to use",
+                               user_data="a folder of H5MD sims of your own (docs/user-data.md): train with the "
+                                         "config's user section")
     gcli.config_options(p)
     p.add_argument("--stats", type=input_path, help="dataset stats.json (default results/<name>/dataset/stats.json)")
     p.add_argument("--splits", type=split_table, help="dataset splits.csv (default results/<name>/dataset/splits.csv)")
@@ -34,22 +38,31 @@ def register(sub) -> None:
 
 
 def default_paths(args) -> None:
-    """Fill --stats, --splits and --out-dir left out with the workflow's paths of --scene or --benchmark, so that
-    `graphdem` checks them against each other before training starts, as it checks paths given."""
-    if not args.name:
+    """Fill --stats, --splits and --out-dir left out with the workflow's paths of --scene, --benchmark or --user-data
+    (named by its folder), so that `graphdem` checks them against each other before training starts, as it checks
+    paths given."""
+    name = _results_name(args)
+    if not name:
         return
-    where = Path("results") / args.name
+    where = Path("results") / name
     for dest, default in (("stats", "dataset/stats.json"), ("splits", "dataset/splits.csv"), ("out_dir", "model")):
         if getattr(args, dest) is None:
             setattr(args, dest, where / default)
 
 
+def _results_name(args) -> str | None:
+    """The results folder's name of --scene or --benchmark, or of --user-data (the folder's basename)."""
+    if getattr(args, "user_data", None) is not None:
+        return Path(os.path.abspath(args.user_data)).name
+    return args.name
+
+
 def run(args) -> None:
     """Train the Graph-DEM surrogate on the train split and keep the checkpoint with the lowest validation rollout
     MSE. Writes best.pt, last.pt (full state, used to resume) and history.csv into --out-dir. The model and training
-    settings are the section of the --scene or --benchmark in the workflow's config: the package defaults, --config
-    files and --set keys, e.g. graphdem train --scene slide --set scale=ci --set slide.train.lr=1e-3 (graphdem config
-    prints the result)."""
+    settings are the section of the --scene or --benchmark in the workflow's config (with --user-data, its user
+    section): the package defaults, --config files and --set keys, e.g. graphdem train --scene slide --set scale=ci
+    --set slide.train.lr=1e-3 (graphdem config prints the result)."""
     from surrogate import distributed, train
     model, train_cfg, device, stats, splits, out_dir = sections(args)
     main = distributed.World.from_env().main
@@ -67,18 +80,19 @@ def sections(args) -> tuple[dict, dict, str, Path, Path, Path]:
     sections.
     --device wins over the config's ``device``; without either, auto."""
     if args.model_json is not None or args.train_json is not None:
-        if args.model_json is None or args.train_json is None or args.name or args.config_file or args.set:
+        if args.model_json is None or args.train_json is None or _results_name(args) or args.config_file or args.set:
             raise SystemExit("graphdem train: --model-json and --train-json (the workflow's resolved sections) go "
-                             "together and replace --scene or --benchmark, --config and --set")
+                             "together and replace --scene, --benchmark or --user-data, --config and --set")
         model, train_cfg, where, device = args.model_json, args.train_json, None, args.device or "auto"
     else:
-        if not args.name:
-            raise SystemExit(f"graphdem train: give --scene (one of {', '.join(scenes.names())}) or --benchmark "
-                             f"(one of {', '.join(sorted(gcli.gconfig.BENCHMARKS))}) to train with its model and "
-                             "train config")
+        name = _results_name(args)
+        if not name:
+            raise SystemExit(f"graphdem train: give --scene (one of {', '.join(scenes.names())}), --benchmark "
+                             f"(one of {', '.join(sorted(gcli.gconfig.BENCHMARKS))}) or --user-data FOLDER to train "
+                             "with its model and train config")
         resolved = gcli.resolved_config(args)
-        section = resolved[args.name]
-        model, train_cfg, where = section["model"], section["train"], Path("results") / args.name
+        section = resolved["user" if args.name is None else args.name]
+        model, train_cfg, where = section["model"], section["train"], Path("results") / name
         device = args.device or resolved["device"]
     paths = []
     for value, default in ((args.stats, "dataset/stats.json"), (args.splits, "dataset/splits.csv"),

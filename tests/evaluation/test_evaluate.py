@@ -239,3 +239,36 @@ def test_an_ensemble_member_of_other_frames_or_none_at_all_is_refused_by_name(ti
     assert cli.main(args) == 1
     assert "no DEM ensemble run of this sim" in capsys.readouterr().err
     assert not (tmp_path / "m.csv").exists()
+
+
+def test_a_model_trained_on_user_data_is_scored_by_the_generic_metrics_only(tiny_dataset, tmp_path):
+    """The same weights and sims: with stats.json's user_data (graphdem dataset --user-data) the slide's own metrics
+    give way to the generic ones (rollout MSE, plausibility, kinetic energy), with the same rollout MSE and truth."""
+    import json
+
+    import torch
+
+    from surrogate import checkpoint
+    from surrogate.simulator import LearnedSimulator
+    stats = json.loads(tiny_dataset["stats_json"])
+    torch.manual_seed(0)
+    weights = LearnedSimulator(stats, tiny_dataset["model"]).state_dict()
+    test = tiny_dataset["split_table"].query("split == 'test'")["path"].iloc[0]
+    tables = {}
+    for kind, recorded in (("scene", stats), ("user", {**stats, "user_data": {"folder": "mine", "seed": 0}})):
+        checkpoint.save(tmp_path / f"{kind}.pt", {"model": weights, "json": {
+            "stats": recorded, "model": tiny_dataset["model"], "train": tiny_dataset["train"]}})
+        out = tmp_path / f"{kind}.csv"
+        assert cli.main(["evaluate", "--checkpoint", str(tmp_path / f"{kind}.pt"), "--data", str(test), "--history",
+                         "4", "--out", str(out), "--no-progress"]) == 0
+        tables[kind] = pd.read_csv(out).query("sim == 'all'").set_index(["method", "metric"])
+    generic = {"rollout MSE", "Max overlap", "P99 overlap", "Outside box", "Through wall", "Kinetic energy",
+               "seconds per frame"}
+    assert set(tables["user"].index.get_level_values("metric")) == generic
+    assert {"Slide Num", "Tongue Dis", "Dis"} <= set(tables["scene"].index.get_level_values("metric"))
+    assert set(tables["user"].index.get_level_values("method")) == {"graphdem", "constant_velocity"}
+    for key in [(m, "rollout MSE") for m in ("graphdem", "constant_velocity")]:
+        assert np.isfinite(tables["user"].at[key, "mse"])
+        assert tables["user"].at[key, "mse"] == pytest.approx(tables["scene"].at[key, "mse"])
+    energy = ("graphdem", "Kinetic energy")
+    assert tables["user"].at[energy, "mean_truth"] == pytest.approx(tables["scene"].at[energy, "mean_truth"])

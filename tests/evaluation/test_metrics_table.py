@@ -122,3 +122,24 @@ def test_the_yardsticks_figures_show_their_bootstrap_interval_and_their_csv_numb
                                           f"{model['skill_ci_high']:.4g}]")
     assert found["graphdem"]["error_in_spreads"] == f"{model['error_in_spreads']:.4g}" == "0.8"
     assert found["constant_velocity"]["skill"].startswith("0 ")
+
+
+def test_without_a_dem_ensemble_its_figures_are_n_a_and_say_why(tmp_path):
+    """User data and the public benchmarks have no DEM ensemble: its figures are n/a (not undefined), the skill
+    against constant velocity stays a number."""
+    from evaluation.summary import summarise
+    from tests.evaluation.test_summary import INTERVALS, rows
+    steps = pd.DataFrame(rows("graphdem", "Max Ht", {"a": 0.1, "b": 0.3})        # no members: no spread
+                         + rows("constant_velocity", "Max Ht", {"a": 0.8, "b": 0.8}))
+    csv = tmp_path / "metrics.csv"
+    table = summarise(steps, intervals=INTERVALS, units={"Max Ht": "m"})
+    assert table["error_in_spreads"].isna().all() and table["vs_members"].isna().all()
+    table.to_csv(csv, index=False)
+    page = metrics_table.write(csv, tmp_path / "metrics.html", "mine").read_text()
+    shown = ["method", "metric", "sim", *metrics_table.shown(table), "why"]
+    row = next(dict(zip(shown, texts, strict=True)) for texts in (
+        [" ".join(re.sub(r"<[^>]+>", " ", c).split()) for c in re.findall(r"<td[^>]*>(.*?)</td>", r, re.S)]
+        for r in re.findall(r"<tr>(.*?)</tr>", page, re.S)) if texts and texts[0] == "graphdem")
+    assert row["error_in_spreads"] == row["vs_members"] == "n/a" and row["why"] == ""
+    assert row["skill"].split()[0] == f"{table.set_index('method').at['graphdem', 'skill']:.4g}"
+    assert "no DEM ensemble in this evaluation" in page

@@ -82,3 +82,52 @@ def test_stats_record_the_contact_miss_rate_of_r_on_the_train_split(tiny_dataset
     assert cli.main(["dataset", "--scene", "slide", "--table", str(tiny_dataset["splits"]),
                      "--out-dir", str(tmp_path / "cli"), "--connectivity-radius", "0.001"]) == 0
     assert "WARNING: R = 0.001 misses 1e+02 % of the next frame's contacts" in capsys.readouterr().out
+
+
+def disc_sim(path, radii, kinematic, frames=6, seed=0):
+    """Discs on a line, the moving ones drifting by a seeded random walk, the kinematic ones fixed."""
+    rng = np.random.default_rng(seed)
+    n = len(radii)
+    kinematic = np.asarray(kinematic, bool)
+    pos = np.broadcast_to(np.stack([np.arange(n) * 5.0 + 5.0, np.full(n, 10.0)], -1), (frames, n, 2)).copy()
+    pos[:, ~kinematic] += np.cumsum(rng.normal(0.0, 0.05, (frames, int((~kinematic).sum()), 2)), axis=0)
+    h5md.write(path, h5md.Trajectory(
+        position=pos, time=np.arange(frames) * 0.5, step=np.arange(frames), species=np.where(kinematic, 0, 1),
+        radius=np.asarray(radii, float), mass=np.ones(n), kinematic=kinematic,
+        box_lower=np.zeros(2), box_upper=np.full(2, 100.0)))
+
+
+def test_a_user_folder_is_split_and_its_radius_derived_from_the_moving_train_particles(tmp_path):
+    """R = connectivity_diameters x the mean diameter of the moving particles of the train sims only: the kinematic
+    discs (radius 2) and the valid and test sims (radius 1) do not count."""
+    from generators import sweep
+    folder = tmp_path / "mine"
+    labels = sweep.split_labels(5, [0.6, 0.2, 0.2], 3)
+    for i, split in enumerate(labels):
+        radii = [0.3, 0.5, 2.0] if split == "train" else [1.0, 1.0, 2.0]
+        disc_sim(folder / f"run-{i}.h5", radii, [False, False, True], seed=i)
+    stats = dataset.build_user(folder, tmp_path / "out", [0.6, 0.2, 0.2], 3, None, 2.5, 6)
+    assert stats["connectivity_radius"] == pytest.approx(2.5 * 2 * 0.4)
+    rule = stats["derived"]["connectivity_radius"]
+    assert rule["mean_diameter"] == pytest.approx(0.8) and rule["connectivity_diameters"] == 2.5
+    assert stats["user_data"] == {"folder": str(folder), "fractions": [0.6, 0.2, 0.2], "seed": 3}
+    splits = pd.read_csv(tmp_path / "out" / "splits.csv")
+    assert list(splits["id"]) == [f"run-{i}" for i in range(5)] and list(splits["split"]) == labels
+    assert stats["n_train_sims"] == 3 == labels.count("train")
+    given = dataset.build_user(folder, tmp_path / "out2", [0.6, 0.2, 0.2], 3, 7.0, 2.5, 6)
+    assert given["connectivity_radius"] == 7.0 and "derived" not in given
+
+
+def test_a_user_sim_too_short_for_a_training_sample_is_refused_by_name(tmp_path):
+    folder = tmp_path / "mine"
+    for i in range(3):
+        disc_sim(folder / f"s{i}.h5", [0.5, 0.5], [False, True], frames=8 if i else 5, seed=i)
+    with pytest.raises(ValueError, match=r"s0.h5: 5 frames; .* each sim needs at least 7 \(model.history \+ "
+                                         r"model.bundle\)"):
+        dataset.build_user(folder, tmp_path / "out", [0.4, 0.3, 0.3], 0, None, 2.5, 7)
+    assert not (tmp_path / "out").exists()
+    assert dataset.mean_moving_radius([folder / "s1.h5", folder / "s2.h5"]) == pytest.approx(0.5)
+    only_walls = tmp_path / "walls.h5"
+    disc_sim(only_walls, [0.5, 0.5], [True, True])
+    with pytest.raises(ValueError, match="no moving particle in the 1 train sims"):
+        dataset.mean_moving_radius([only_walls])

@@ -30,6 +30,16 @@ def test_ema_decay_spans_the_epochs_asked_for():
         derived.ema_decay(100, -1.0)
 
 
+def test_the_connectivity_radius_is_the_diameters_times_the_mean_diameter():
+    # the slide's default: R = 5 m at radii 0.8-1.2 m, 2.5 mean diameters of 2 m
+    assert derived.connectivity_radius(1.0, 2.5) == pytest.approx(5.0)
+    assert derived.connectivity_radius(0.004, 1.5) == pytest.approx(0.012)     # the shear's 12 mm at d = 8 mm
+    with pytest.raises(ValueError, match=r"connectivity_diameters is 0.0; allowed: a number > 0"):
+        derived.connectivity_radius(1.0, 0.0)
+    with pytest.raises(ValueError, match="the train split needs moving particles"):
+        derived.connectivity_radius(float("nan"), 2.5)
+
+
 def test_resolve_replaces_only_auto_values_and_records_the_rule():
     stats = {"acceleration_std": [0.3, 0.4]}
     cfg = {"noise_std": "auto", "noise_ratio": 0.1, "ema_decay": "auto", "ema_epochs": 0.5, "lr": 1e-3}

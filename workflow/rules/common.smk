@@ -1,8 +1,10 @@
 # Helpers shared by every rule: the resolved config, the scene registry's sweep tables, per-job parameters.
 # Scenes (generators/scenes/) and the public benchmarks (Solid-GN, imported) share the dataset, train and
-# evaluate rules through the wildcard `name`; input functions here give each its inputs.
+# evaluate rules through the wildcard `name`; input functions here give each its inputs. User-data sets (any folder
+# of H5MD sims; workflow/rules/user_data.smk) share the train and evaluate rules the same way.
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -12,6 +14,7 @@ from generators import engines as gengines
 from generators import ensemble as gensemble
 from generators import scenes as gscenes
 from generators import sweep as gsweep
+from generators import user_data as guser
 from generators.packing import packing_key
 from generators.scene import EXECUTION_KEYS, SURROGATE_KEYS
 
@@ -69,6 +72,14 @@ SWEEPS = {scene: gsweep.build(scene, CFG[scene]) for scene in SCENES}
 SHEAR_STRESS_SCENES = [s for s in SCENES if "shear_stress_readout" in CFG[s]]
 # Public benchmarks (article Table 6), imported from solidgn_root rather than simulated.
 BENCHMARKS = list(gconfig.BENCHMARKS)
+# User-data sets (config key user_data; docs/user-data.md): results name -> folder of H5MD sims, each trained and
+# scored with the config's `user` section, split as its dataset stage splits it (generators/user_data.py).
+USER_DATA = CFG["user_data"]
+USER_SPLITS = {name: guser.split_table(folder, CFG["user"]["split"], CFG["user"]["seed"])
+               for name, folder in USER_DATA.items()}
+# The `name` of the rules only scenes and benchmarks have, and of those only user-data sets have ((?!): none).
+SCENE_OR_BENCHMARK = "|".join(SCENES + BENCHMARKS)
+USER_NAMES = "|".join(re.escape(name) for name in USER_DATA) or "(?!)"
 # The results folders this run involves (filled while the DAG is built); each records the run's scale.
 SCALE_FOLDERS = set()
 
@@ -78,7 +89,7 @@ wildcard_constraints:
     run="|".join(SCENES + CROSSCHECK_RUNS + ENSEMBLE_RUNS + PROPERTY_RUNS),
     engine="|".join(ENGINES),
     bench="|".join(BENCHMARKS),
-    name="|".join(SCENES + BENCHMARKS),
+    name="|".join(SCENES + BENCHMARKS + [re.escape(name) for name in USER_DATA]),
     sim=r"[a-z]+_\d+",
     key=r"p\d+-[0-9a-f]+",
     seed=r"\d+",
@@ -99,9 +110,10 @@ def _json(value) -> str:
 
 def kept_scale(wildcards) -> list[str]:
     """Input function of the stages that start a scene's results (sweep, prepare, simulate, also of the
-    cross-check's runs) or a benchmark's (import): no input, but refuses a run at another scale than the
-    scene's or benchmark's results folder records (workflow/graphdem_workflow/scales.py), before anything runs."""
-    name = getattr(wildcards, "scene", None) or getattr(wildcards, "bench", None) or run_scene(wildcards)
+    cross-check's runs), a benchmark's (import) or a user-data set's (its dataset): no input, but refuses a run at
+    another scale than the results folder records (workflow/graphdem_workflow/scales.py), before anything runs."""
+    name = (getattr(wildcards, "scene", None) or getattr(wildcards, "bench", None) or getattr(wildcards, "name", None)
+            or run_scene(wildcards))
     folder = f"results/{name}"
     gscales.check(folder, CFG["scale"], CFG["overwrite_scale"])
     SCALE_FOLDERS.add(folder)
@@ -116,6 +128,15 @@ def record_scales() -> None:
 
 def is_scene(wildcards) -> bool:
     return wildcards.name in SCENES
+
+
+def is_user_data(wildcards) -> bool:
+    return wildcards.name in USER_DATA
+
+
+def section_name(name: str) -> str:
+    """The config section of a results name: the scene's or benchmark's own, `user` for a user-data set."""
+    return "user" if name in USER_DATA else name
 
 
 def scene_or_benchmark_option(wildcards) -> list[str]:
@@ -230,8 +251,8 @@ def all_sims(wildcards) -> list[str]:
 
 
 def _section(wildcards) -> dict:
-    """The config section of a job's scene or public benchmark."""
-    return CFG[getattr(wildcards, "scene", None) or wildcards.name]
+    """The config section of a job's scene, public benchmark or user-data set."""
+    return CFG[section_name(getattr(wildcards, "scene", None) or wildcards.name)]
 
 
 def connectivity_radius(wildcards) -> float:
@@ -289,9 +310,9 @@ def dataset_table(wildcards) -> str:
 
 
 def train_threads(wildcards) -> int:
-    """Scenes train on every core given; a public benchmark on one (graphs of ~100 particles gain little
-    from a second core, so under -c2 the two benchmarks train side by side)."""
-    return 64 if is_scene(wildcards) else 1    # Snakemake caps threads at --cores
+    """Scenes and user-data sets train on every core given; a public benchmark on one (graphs of ~100 particles
+    gain little from a second core, so under -c2 the two benchmarks train side by side)."""
+    return 1 if wildcards.name in BENCHMARKS else 64    # Snakemake caps threads at --cores
 
 
 def progress_arg(wildcards) -> list[str]:
@@ -328,8 +349,10 @@ def rollout_paths(scene: str, ids: list[str]) -> list[str]:
 
 
 def evaluated_rollouts(wildcards) -> list[str]:
-    """A scene's test rollouts (the rollout stage, one job per sim); a public benchmark rolls out inside
-    evaluate, once per protocol."""
+    """A scene's or user-data set's test rollouts (the rollout stage, one job per sim); a public benchmark rolls
+    out inside evaluate, once per protocol."""
+    if is_user_data(wildcards):
+        return rollout_paths(wildcards.name, user_test_ids(wildcards.name))
     if not is_scene(wildcards):
         return []
     return rollout_paths(wildcards.name, test_ids(wildcards.name))
@@ -339,8 +362,8 @@ def evaluated_rollouts(wildcards) -> list[str]:
 
 
 def _seeds(name: str) -> list[int]:
-    """The training seeds of a scene or benchmark: train.seed and the next `seeds` - 1."""
-    first = int(CFG[name]["train"]["seed"])
+    """The training seeds of a scene, benchmark or user-data set: train.seed and the next `seeds` - 1."""
+    first = int(CFG[section_name(name)]["train"]["seed"])
     return list(range(first, first + int(CFG["seeds"])))
 
 
@@ -490,9 +513,10 @@ def property_sensitivity_args(wildcards) -> list[str]:
 
 
 def evaluation_args(wildcards) -> list[str]:
-    """The split, protocols, rollouts, DEM ensemble and bootstrap intervals of the evaluate stage."""
+    """The split, protocols, rollouts, DEM ensemble and bootstrap intervals of the evaluate stage (a user-data set:
+    a scene's, without the ensemble)."""
     intervals = ["--intervals-json", _json(CFG["intervals"])]
-    if is_scene(wildcards):
+    if wildcards.name not in BENCHMARKS:
         ensemble = ["--ensemble", *ensemble_dirs(wildcards.name)] if ensemble_sims(wildcards) else []
         return ["--split", "test", "--history", str(history_length(wildcards)),
                 "--rollouts", f"results/{wildcards.name}/rollouts", *ensemble, *intervals]
@@ -681,3 +705,43 @@ def export_sims(wildcards) -> list[str]:
 
 def export_rollouts(wildcards) -> list[str]:
     return rollout_paths(wildcards.scene, export_ids(wildcards))
+
+
+# ---- user data (workflow/rules/user_data.smk) ---------------------------------------------------------
+
+
+def user_test_ids(name: str) -> list[str]:
+    """The test sims of a user-data set (its split table, generators/user_data.py)."""
+    table = USER_SPLITS[name]
+    return list(table.loc[table["split"] == "test", "id"])
+
+
+def user_folder(wildcards) -> str:
+    return USER_DATA[wildcards.name]
+
+
+def user_sims(wildcards) -> list[str]:
+    """Every sim of a user-data set's folder: the dataset stage reads each (a changed sim remakes the dataset)."""
+    return list(USER_SPLITS[wildcards.name]["path"])
+
+
+def user_sim(wildcards) -> str:
+    """The file of one sim of a user-data set."""
+    table = USER_SPLITS[wildcards.name]
+    rows = table.loc[table["id"] == wildcards.sim, "path"]
+    if rows.empty:
+        raise ValueError(f"{wildcards.sim} is not a sim of the user-data set {wildcards.name} "
+                         f"({USER_DATA[wildcards.name]}: {len(table)} sims)")
+    return rows.iloc[0]
+
+
+def user_dataset_args(wildcards) -> list[str]:
+    """The split (fractions, seed), the frames a sim must hold (history + bundle) and the graph radius of a
+    user-data set's dataset stage: R itself, or where `auto`, the mean diameters it is derived from."""
+    user = CFG["user"]
+    model = user["model"]
+    radius = user["connectivity_radius"]
+    graph = (["--connectivity-diameters", str(user["connectivity_diameters"])] if radius == "auto"
+             else ["--connectivity-radius", str(radius)])
+    return ["--fractions", *map(str, user["split"]), "--seed", str(user["seed"]),
+            "--min-frames", str(model["history"] + model.get("bundle", 1)), *graph]

@@ -13,6 +13,8 @@ rule dataset:
     params:
         name=scene_or_benchmark_option,
         radius=connectivity_radius,
+    wildcard_constraints:
+        name=SCENE_OR_BENCHMARK,      # a user-data set's dataset is rule dataset_user's (user_data.smk)
     log:
         "results/{name}/logs/dataset.log",
     benchmark:

@@ -54,3 +54,38 @@ def test_the_contacts_table_has_a_row_per_radius_and_cap(sims, tmp_path, capsys)
     assert "2 train sims of" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="no sim in split 'valid'"):
         run(dataset.register, ["contacts", "--splits", str(splits), "--split", "valid", "--radius", "1.6"])
+
+
+def test_a_user_folder_makes_the_dataset_with_the_user_sections_defaults(tmp_path, capsys):
+    """--user-data FOLDER alone: the config's user split, seed and R rule (2.5 mean diameters of the synthetic
+    discs of radius 0.4: 2 m), the plot titled by the folder; flags override each."""
+    from generators import config, sweep
+    folder = tmp_path / "my-sims"
+    for i in range(5):
+        synthetic.write_sim(folder / f"run-{i}.h5", seed=i)
+    user = config.load()["user"]
+    run(dataset.register, ["dataset", "--user-data", str(folder), "--out-dir", str(tmp_path / "ds"),
+                           "--min-frames", "7", "--plot", str(tmp_path / "sample.png")])
+    splits = pd.read_csv(tmp_path / "ds" / "splits.csv")
+    assert list(splits["split"]) == sweep.split_labels(5, user["split"], user["seed"])
+    stats = json.loads((tmp_path / "ds" / "stats.json").read_text())
+    assert stats["connectivity_radius"] == pytest.approx(user["connectivity_diameters"] * 0.8)
+    assert stats["user_data"]["folder"] == str(folder) and (tmp_path / "sample.png").stat().st_size > 10_000
+    run(dataset.register, ["dataset", "--user-data", str(folder), "--out-dir", str(tmp_path / "ds2"), "--fractions",
+                           "0.4", "0.4", "0.2", "--seed", "9", "--connectivity-radius", "1.5", "--min-frames", "7"])
+    stats = json.loads((tmp_path / "ds2" / "stats.json").read_text())
+    assert stats["connectivity_radius"] == 1.5 and stats["splits"] == {"train": 2, "valid": 2, "test": 1}
+    assert list(pd.read_csv(tmp_path / "ds2" / "splits.csv")["split"]) == sweep.split_labels(5, [0.4, 0.4, 0.2], 9)
+    with pytest.raises(ValueError, match=r"run-0.h5: 7 frames; .* at least 8"):
+        run(dataset.register, ["dataset", "--user-data", str(folder), "--out-dir", str(tmp_path / "ds3"),
+                               "--min-frames", "8"])
+    short = tmp_path / "short"
+    for i in range(3):
+        synthetic.write_sim(short / f"s{i}.h5", seed=i, frames=6)
+    with pytest.raises(ValueError, match=r"s0.h5: 6 frames; .* at least 7 \(model.history"):     # K = 6, bundle 1
+        run(dataset.register, ["dataset", "--user-data", str(short), "--out-dir", str(tmp_path / "ds3")])
+    with pytest.raises(SystemExit, match="--user-data splits its folder itself"):
+        run(dataset.register, ["dataset", "--user-data", str(folder), "--table", str(tmp_path / "ds" / "splits.csv"),
+                               "--out-dir", str(tmp_path / "ds3")])
+    with pytest.raises(SystemExit, match="--table and --connectivity-radius are needed with --scene"):
+        run(dataset.register, ["dataset", "--scene", "slide", "--out-dir", str(tmp_path / "ds3")])

@@ -33,11 +33,27 @@ def test_the_workflow_s_sections_replace_the_scene_and_name_every_file():
     assert got == ({"history": 3}, {"lr": 0.1}, "auto", Path("s.json"), Path("t.csv"), Path("m"))
 
 
+def test_user_data_trains_with_the_user_section_into_its_folders_results(tmp_path, capsys):
+    """--user-data FOLDER: the config's user section, the results of the folder's name (docs/user-data.md)."""
+    folder = tmp_path / "my-sims"
+    folder.mkdir()
+    model, train_cfg, device, stats, splits, out_dir = _sections("--user-data", str(folder), "--set", "scale=ci",
+                                                                 "--set", "user.train.lr=0.002")
+    expected = config.load({"scale": "ci", "user": {"train": {"lr": 0.002}}})["user"]
+    assert model == expected["model"] and train_cfg == expected["train"] and train_cfg["lr"] == 0.002
+    assert model["message_passing"] == 2 and train_cfg["noise_std"] == "auto"       # the ci preset, derived noise
+    where = Path("results") / "my-sims"
+    assert (stats, splits, out_dir) == (where / "dataset/stats.json", where / "dataset/splits.csv", where / "model")
+    with pytest.raises(SystemExit):
+        _sections("--user-data", str(folder), "--scene", "slide")
+    assert "argument --scene: not allowed with argument --user-data" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("argv, message", [
     ([], "give --scene"),
     (["--model-json", "{}"], "--model-json and --train-json .* go together"),
     (["--model-json", "{}", "--train-json", "{}", "--scene", "slide"],
-     "replace --scene or --benchmark, --config and --set"),
+     "replace --scene, --benchmark or --user-data, --config and --set"),
     (["--model-json", "{}", "--train-json", "{}", "--stats", "s.json"], "--stats, --splits and --out-dir are needed"),
 ])
 def test_sections_given_two_ways_or_half_are_refused(argv, message):
