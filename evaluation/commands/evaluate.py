@@ -20,10 +20,11 @@ def register(sub) -> None:
     p.add_argument("--split", choices=("auto", "test", "valid"), default="test",
                    help="which split the sims are (with --data) or which to take from --splits; auto: test where "
                         "the table has one, else valid (said in every output)")
-    p.add_argument("--history", type=int, nargs="+", required=True,
+    p.add_argument("--history", type=int, nargs="+",
                    help="K of each protocol: frames given from the data and not scored; at least the history "
                         "length the checkpoint reads (more: each step still reads its last frames). Several K: "
-                        "one table with a row set per K (the history column), plots of all, the GIF of the first")
+                        "one table with a row set per K (the history column), plots of all, the GIF of the first. "
+                        "Default: the history the checkpoint reads")
     p.add_argument("--out", type=output_file, required=True, help="metrics CSV to write")
     p.add_argument("--per-step", type=output_file, help="per-step CSV (truth and prediction per metric and frame)")
     p.add_argument("--table-html", type=output_file,
@@ -58,6 +59,8 @@ def run_evaluate(args) -> None:
     --user-data, docs/user-data.md) is scored by the generic metrics only, whatever scene its sims name: rollout MSE
     and plausibility (overlaps, particles outside the box and through a wall, kinetic energy)."""
     options.log_to_stderr()
+    if args.history is None:
+        args.history = [checkpoint_history(args.checkpoint)]
     split, data, note = _split(args)
     if note:
         print(f"NOTE: {note}")
@@ -65,6 +68,15 @@ def run_evaluate(args) -> None:
         raise SystemExit("graphdem evaluate: --rollouts holds rollouts of one K; give one --history with it")
     table, steps, sims, config = _protocols(args, split, data, note)
     _write_outputs(args, table, steps, sims, split, config)
+
+
+def checkpoint_history(paths: list) -> int:
+    """The history K the checkpoints read (their model config's ``history``; several must agree)."""
+    from surrogate import checkpoint
+    ks = {int(checkpoint.load(p, map_location="meta")["json"]["model"]["history"]) for p in paths}
+    if len(ks) != 1:
+        raise SystemExit(f"graphdem evaluate: the checkpoints read different histories {sorted(ks)}; give --history")
+    return ks.pop()
 
 
 def _write_outputs(args, table, steps, sims, split: str, config) -> None:

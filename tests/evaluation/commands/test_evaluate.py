@@ -42,3 +42,27 @@ def test_combine_stacks_tables_in_the_order_given(tmp_path, capsys):
     union = pd.read_csv(out)
     assert list(union["metric"]) == ["rollout MSE", "Runout"] and union["mse"].iloc[0] == 0.5
     assert union["mse"].isna().iloc[1] and union["acc_percent"].iloc[1] == 91.0
+
+
+@pytest.mark.engine
+def test_the_history_defaults_to_the_checkpoints(saved_checkpoint, tiny_dataset, tmp_path):
+    import torch
+
+    from surrogate import checkpoint
+    from surrogate.simulator import LearnedSimulator
+    _, sim, stats = saved_checkpoint
+    for k in (4, 5):
+        model = {**tiny_dataset["model"], "history": k}
+        torch.manual_seed(0)
+        meta = {"stats": stats, "model": model, "train": tiny_dataset["train"]}
+        checkpoint.save(tmp_path / f"k{k}.pt", {"model": LearnedSimulator(stats, model).state_dict(), "json": meta})
+    base = ["evaluate", "--checkpoint", str(tmp_path / "k4.pt"), "--data", str(sim), "--split", "test", "--no-progress"]
+    run(evaluate.register, [*base, "--out", str(tmp_path / "default.csv")])
+    run(evaluate.register, [*base, "--history", "4", "--out", str(tmp_path / "given.csv")])
+    default, given = pd.read_csv(tmp_path / "default.csv"), pd.read_csv(tmp_path / "given.csv")
+    assert set(default["history"]) == {4}                       # the checkpoint reads K = 4
+    timed = default["unit"].eq("s")                            # the rollout's wall time differs run to run
+    pd.testing.assert_frame_equal(default[~timed], given[~given["unit"].eq("s")])
+    with pytest.raises(SystemExit, match=r"the checkpoints read different histories \[4, 5\]; give --history"):
+        run(evaluate.register, ["evaluate", "--checkpoint", str(tmp_path / "k4.pt"), str(tmp_path / "k5.pt"),
+                                "--data", str(sim), "--split", "test", "--out", str(tmp_path / "both.csv")])
