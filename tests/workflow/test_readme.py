@@ -97,6 +97,7 @@ PROMISES = {
         {"builds": ({"slide_samer"}, "import_solidgn")},
     "results/slide_samer/card.md --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer"}, "card")},
     "benchmarks --config solidgn_root=/path/to/solidgn": {"builds": ({"slide_samer", "slide_small"}, "card")},
+    "results/mine/metrics.csv --config user_data=/path/to/mine": {"builds": ({"mine"}, "dataset_user")},
 }
 
 
@@ -109,9 +110,20 @@ def fake_solidgn(root: Path) -> Path:
     return root
 
 
+def fake_user_data(root: Path) -> Path:
+    """A folder of a user's sims named mine/ (a dry run reads only their names)."""
+    (root / "mine").mkdir(parents=True)
+    for i in range(10):
+        (root / "mine" / f"mine_{i:04d}.h5").write_bytes(b"")
+    return root / "mine"
+
+
 def dry_run(args: list[str], workdir: Path, solidgn: Path) -> list[tuple[str, set[str]]]:
     """The planned jobs of a documented command: (rule, the results/ folders its outputs lie in), per job."""
     args = [a.replace("/path/to/solidgn", str(solidgn)) for a in args]
+    if any("/path/to/mine" in a for a in args):
+        mine = fake_user_data(workdir.parent / f"{workdir.name}_user")
+        args = [a.replace("/path/to/mine", str(mine)) for a in args]
     if "-d" in args:                                   # its own working directory, placed inside ours
         i = args.index("-d")
         workdir = workdir / args[i + 1]
