@@ -40,6 +40,14 @@ def recorded(metrics: pd.DataFrame, column: str) -> str:
     return str(values[0]) if len(values) else ""
 
 
+def example_mse(metrics: pd.DataFrame, sim: str) -> float:
+    """Graph-DEM's rollout MSE (m²) on the test sim ``sim``, as the metrics record it (its model's first K)."""
+    rows = metrics[(metrics["method"] == "graphdem") & (metrics["metric"] == "rollout MSE") & (metrics["sim"] == sim)]
+    if len(rows) != 1:
+        raise ValueError(f"the metrics hold {len(rows)} Graph-DEM rollout MSE rows of the test sim {sim!r}, not one")
+    return float(rows["mse"].iloc[0])
+
+
 def metadata(scene: str, source: Path, metrics: pd.DataFrame, runtime: dict, data: dict) -> dict:
     """The checkpoint metadata's ``pretrained`` entry."""
     return {"scene": scene, "runtime": runtime, "config_sha": recorded(metrics, "config_sha"),
@@ -93,14 +101,16 @@ def publish(scene: str, source: Path, splits: Path, metrics_csv: Path, runtime: 
     from evaluation.tables import read_csv
     stored = checkpoint.load(source)
     metrics = read_csv(metrics_csv)
-    info = metadata(scene, Path(source), metrics, runtime, data_facts(splits))
+    table = pd.read_csv(splits)
+    example = str(table.loc[table["split"] == "test", "id"].iloc[0])
+    info = {**metadata(scene, Path(source), metrics, runtime, data_facts(splits)),
+            "example": {"sim": example, "rollout_mse": example_mse(metrics, example)}}
     meta = {**stored["json"], "pretrained": info}
     out_dir.mkdir(parents=True, exist_ok=True)
     pt, md = out_dir / f"{scene}.pt", out_dir / f"{scene}.md"
     checkpoint.save(pt, {"model": stored["model"], "json": meta})
-    table = pd.read_csv(splits)
     with atomic_path(out_dir / f"{scene}_example.h5") as tmp:
-        shutil.copyfile(table.loc[table["split"] == "test", "path"].iloc[0], tmp)
+        shutil.copyfile(table.loc[table["id"] == example, "path"].iloc[0], tmp)
     parameters = sum(int(t.numel()) for t in stored["model"].values())
     with atomic_path(md) as tmp:
         tmp.write_text(card_text(meta, info, pt.stat().st_size, parameters))
