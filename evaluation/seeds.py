@@ -2,7 +2,8 @@
 ``seeds`` seeds, each model scored by the same evaluation, and every metric's mean and spread.
 
 One row per method, metric, protocol K (``history``) and value column that has a value (``acc_percent``,
-``acc_pooled_percent``, ``mse``, ``mean_prediction``; the rollout MSE's figure is its ``mse`` alone): the mean, the sample standard deviation (ddof 1), the
+``acc_pooled_percent``, ``mse``, ``mean_prediction``; the rollout MSE's figure is its ``mse`` alone): the mean,
+the sample standard deviation (ddof 1), the
 smallest and largest value, the number of seeds, and each seed's value (``values``, ``seed:value``). A seed
 whose model blew up on a sim has NaN there, which makes the mean NaN: a spread is never taken over the seeds
 that happened to work.

@@ -5,10 +5,11 @@ Per method and metric, one ``sim = all`` row, plus the rollout MSE of every sim.
 (:mod:`evaluation.metrics.scores` gives each rule):
 
 * rollout MSE (``mse``, only there: its ``mean_prediction`` is empty), and for a metric that compares the
-  prediction with the truth frame by frame (the slide's Dis) its mean (``mean_prediction``); for a metric with a truth of its own (Max Ht, Runout) the
-  article's Acc (``acc_percent``, kept for the comparison with its tables, and ``acc_pooled_percent``) and the
-  datum-free ``change_error`` (metric units), scaled by ``change_scale`` (``change_scale_kind``: the mean
-  particle diameter for lengths, else the truth's mean change) into ``change_error_scaled``;
+  prediction with the truth frame by frame (the slide's Dis) its mean (``mean_prediction``); for a metric with a
+  truth of its own (Max Ht, Runout) the article's Acc (``acc_percent``, kept for the comparison with its tables,
+  and ``acc_pooled_percent``) and the datum-free ``change_error`` (metric units), scaled by ``change_scale``
+  (``change_scale_kind``: the mean particle diameter for lengths, else the truth's mean change) into
+  ``change_error_scaled``;
 * ``skill``: 1 - error / constant velocity's error, paired on the same sims (of the MSE, the compared metric or
   the change error);
 * the DEM ensemble: ``dem_ensemble`` rows are its members, each scored against the truth (the mean over

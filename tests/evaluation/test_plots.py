@@ -88,7 +88,8 @@ def test_the_pareto_points_are_numbered_clear_of_each_other_and_named_in_a_key_b
                  "no_correction": (1.0, 0.35), "float64": (1.9, 0.31), "article_size": (6.0, np.nan)}
     table = pd.DataFrame([{"contender": name, "kind": kind, "seconds_per_rollout": t, "mse": e,
                            "on_pareto_front": name in ("reference", "dt_10pct", "batch_4")}
-                          for kind, group in (("dem", dem), ("surrogate", surrogate)) for name, (t, e) in group.items()])
+                          for kind, group in (("dem", dem), ("surrogate", surrogate))
+                          for name, (t, e) in group.items()])
     fig = plots.pareto_figure(table, "slide: run time against error")
     renderer = fig.canvas.get_renderer()
     fig.canvas.draw()
