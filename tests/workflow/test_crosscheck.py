@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from evaluation import config_sidecar
 from generators import config, crosscheck, h5md, scenes
 
 pytestmark = pytest.mark.engine
@@ -61,6 +62,10 @@ def test_transfer_scores_one_model_on_both_engines(ci_results):
         assert set(table["trained_on"]) == {config.load({"scale": "ci"})[scene]["engine"]}
         assert np.isfinite(table["rollout_mse"]).all() and (table["rollout_mse"] > 0).all()
         assert set(table["method"]) >= {"graphdem", "constant_velocity"}
+        other = "yade" if config.load({"scale": "ci"})[scene]["engine"] == "lammps" else "lammps"
+        metrics = ci_results / "crosscheck" / scene / f"transfer_{other}_metrics.csv"
+        sha = pd.read_csv(metrics)["config_sha"].iloc[0]
+        assert config_sidecar.read(metrics, sha)["model"]      # the declared sidecar, its digest the rows' sha
 
 
 def test_compare_refuses_different_rows_and_reports_undefined_metrics(ci_results, tmp_path):

@@ -104,6 +104,9 @@ def test_seeds_stage_trains_the_other_seeds_and_reports_the_spread(workdir):
     assert mse.at["constant_velocity", "std"] == 0.0 and mse.at["dem_ensemble", "std"] == 0.0
     assert (res / "seeds" / "1" / "logs" / "train.log").is_file()
     assert (res / "seeds" / "1" / "timings" / "evaluate.tsv").is_file()
+    from evaluation import config_sidecar
+    seed_metrics = res / "seeds" / "1" / "metrics.csv"       # its declared sidecar names the seed's config
+    assert config_sidecar.read(seed_metrics, pd.read_csv(seed_metrics)["config_sha"].iloc[0])["train"]["seed"] == 1
 
 
 def test_performance_stage_outputs(workdir):

@@ -37,7 +37,8 @@ rule transfer_evaluate:
         checkpoint="results/{scene}/model/best.pt",
         sims=transfer_sims,
     output:
-        "results/crosscheck/{scene}/transfer_{engine}_metrics.csv",
+        metrics="results/crosscheck/{scene}/transfer_{engine}_metrics.csv",
+        config="results/crosscheck/{scene}/transfer_{engine}_metrics.config.json",   # its config_sha's config
     params:
         history=history_length,
         runtime=runtime_json,
@@ -49,7 +50,7 @@ rule transfer_evaluate:
         "results/crosscheck/{scene}/timings/transfer_{engine}.tsv"
     shell:
         "graphdem evaluate --checkpoint {input.checkpoint:q} --data {input.sims:q} --split test --history {params.history:q} "
-        "--runtime-json {params.runtime:q} {params.metrics:q} --out {output:q} --no-progress > {log} 2>&1"
+        "--runtime-json {params.runtime:q} {params.metrics:q} --out {output.metrics:q} --no-progress > {log} 2>&1"
 
 
 rule transfer:

@@ -38,6 +38,7 @@ rule evaluate_seed:
     output:
         metrics="results/{name}/seeds/{seed}/metrics.csv",
         per_step="results/{name}/seeds/{seed}/metrics_per_step.csv",
+        config="results/{name}/seeds/{seed}/metrics.config.json",      # the config metrics.csv's config_sha names
     params:
         evaluation=seed_evaluation_args,
         runtime=runtime_json,
@@ -66,6 +67,7 @@ rule evaluate_seed_ensemble:
     output:
         metrics="results/{name}/seed_ensemble/metrics.csv",
         per_step="results/{name}/seed_ensemble/metrics_per_step.csv",
+        config="results/{name}/seed_ensemble/metrics.config.json",      # the config metrics.csv's config_sha names
     params:
         evaluation=seed_evaluation_args,
         runtime=runtime_json,
