@@ -50,8 +50,10 @@ def test_the_workflow_runs_as_a_module_of_another_workflow(tmp_path):
     (tmp_path / "Snakefile").write_text(
         'configfile: "config/config.yaml"\n\n'
         f'module graphdem:\n    snakefile: "{ROOT / "workflow" / "Snakefile"}"\n    config: config\n\n'
-        "use rule * from graphdem as graphdem_*\n")
-    proc = subprocess.run([SNAKEMAKE, "-n", "results/slide/metrics.csv"], capture_output=True, text=True,
-                          cwd=tmp_path)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+        "use rule * from graphdem as graphdem_*\n\n"
+        'rule summary:\n    input: "results/slide/metrics.csv"\n    output: "summary.txt"\n'
+        '    shell: "head -1 {input} > {output}"\n')
+    proc = subprocess.run([SNAKEMAKE, "-n", "summary.txt"], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]     # the project's own rule's target
     assert re.search(r"^graphdem_evaluate\s+1\s*$", proc.stdout, re.M)
+    assert re.search(r"^summary\s+1\s*$", proc.stdout, re.M)

@@ -41,6 +41,8 @@ def test_the_command_line_targets_are_read_by_snakemakes_own_parser():
     argv = ["/x/bin/snakemake", "-c2", "results/a.csv", "--forcerun", "train", "-n"]
     assert targets.command_line_targets(Unset(), argv) == ["results/a.csv"]
     assert targets.command_line_targets(Unset(), ["python", "results/a.csv"]) == []      # not the snakemake CLI
+    module_run = ["/x/lib/snakemake/__main__.py", "results/a.csv"]                        # python -m snakemake
+    assert targets.command_line_targets(Unset(), module_run) == ["results/a.csv"]
 
 
 def test_the_candidates_fill_every_wildcard_with_each_known_value():

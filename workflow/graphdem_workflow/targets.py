@@ -56,7 +56,7 @@ def command_line_targets(workflow, argv: list[str] | None = None) -> list[str]:
     if settings is not None and settings.targets:
         return sorted(settings.targets)
     argv = sys.argv if argv is None else argv
-    if not argv or Path(argv[0]).name != "snakemake":
+    if not argv or "snakemake" not in (Path(argv[0]).name, Path(argv[0]).parent.name):   # bin/snakemake, -m snakemake
         return []
     from snakemake.cli import get_argument_parser
     try:
@@ -69,6 +69,8 @@ def command_line_targets(workflow, argv: list[str] | None = None) -> list[str]:
 def check(workflow, values: dict[str, list[str]], names: list[str]) -> None:
     """Exit with :func:`message` when a command-line target of ``workflow`` is made by no rule; ``values`` fill
     the wildcards of the candidates, ``names`` are the results folders (scenes, benchmarks, user-data sets)."""
+    if len(getattr(workflow, "modifier_stack", ())) > 1:
+        return          # read as a module of another workflow: its own rules, defined later, may make the targets
     targets = command_line_targets(workflow)
     rules = list(workflow.rules)
     missing = unmade(targets, rules)
