@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from generators import h5md
-from generators.atomic import atomic_path
+from generators.atomic import atomic_outputs
 from surrogate import checkpoint, provenance
 
 
@@ -108,11 +108,13 @@ def publish(scene: str, source: Path, splits: Path, metrics_csv: Path, runtime: 
     meta = {**stored["json"], "pretrained": info}
     out_dir.mkdir(parents=True, exist_ok=True)
     pt, md = out_dir / f"{scene}.pt", out_dir / f"{scene}.md"
-    checkpoint.save(pt, {"model": stored["model"], "json": meta})
-    with atomic_path(out_dir / f"{scene}_example.h5") as tmp:
-        shutil.copyfile(table.loc[table["id"] == example, "path"].iloc[0], tmp)
     parameters = sum(int(t.numel()) for t in stored["model"].values())
-    with atomic_path(md) as tmp:
-        tmp.write_text(card_text(meta, info, pt.stat().st_size, parameters))
-    doc_tables.write(doc_tables.plan(Path(results).parent, [md], Path(results)))
+    with atomic_outputs() as output:            # the three appear together, or none (the old ones stay)
+        with output(pt) as tmp_pt:
+            checkpoint.save(tmp_pt, {"model": stored["model"], "json": meta})
+        with output(out_dir / f"{scene}_example.h5") as tmp:
+            shutil.copyfile(table.loc[table["id"] == example, "path"].iloc[0], tmp)
+        with output(md) as tmp_md:
+            tmp_md.write_text(card_text(meta, info, tmp_pt.stat().st_size, parameters))
+            doc_tables.write(doc_tables.plan(Path(results).parent, [tmp_md], Path(results)))
     return pt, md

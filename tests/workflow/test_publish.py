@@ -75,3 +75,18 @@ def test_the_workflow_publishes_a_scenes_model(tmp_path):
                            "--", "results/shear/pretrained/shear.pt"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert "rule publish:" in proc.stdout or "publish " in proc.stdout
+
+
+def test_a_failed_publish_leaves_the_previous_files(ci_results, published, monkeypatch):
+    from evaluation import doc_tables, publish
+    out, runtime = published
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def broken(*_):
+        raise OSError("disk full")
+    monkeypatch.setattr(doc_tables, "write", broken)
+    monkeypatch.chdir(ci_results.parent)
+    with pytest.raises(OSError, match="disk full"):
+        publish.publish("slide", Path("results/slide/model/best.pt"), Path("results/slide/dataset/splits.csv"),
+                        Path("results/slide/metrics.csv"), {**runtime, "compile": False}, out, ci_results)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before      # no new checkpoint, card or example
