@@ -149,16 +149,19 @@ def _steps(name: str, cfg: dict, limit: float) -> list[tuple[float, str]]:
 
 def _recording(name: str, cfg: dict) -> tuple[float, float, str]:
     """(frame interval, run-up before frame 0, the keys they come from) of the section's recorded runs: its
-    ``frame_interval``, or where a motion sets the interval, the largest ``sweep.displacements`` over
-    ``shear_speed`` spread over the frames; the run-up ``record_start`` or ``load_time``."""
+    ``frame_interval``, or where a motion sets the interval, the largest ``sweep.displacements`` over the
+    slowest shear (``shear_speed``, or derived from ``max_inertial_number``) spread over the frames; the run-up
+    ``record_start`` or ``load_time``."""
     frames = cfg["frames"]
     if "frame_interval" in cfg:
         interval, keys = cfg["frame_interval"], [f"'{name}.frame_interval' = {cfg['frame_interval']}"]
     else:
+        from generators.scenes import shear
         largest = max(cfg["sweep"]["displacements"])
-        interval = largest / cfg["shear_speed"] / (frames - 1)
+        interval = largest / shear.slowest_speed(cfg) / (frames - 1)
         keys = [f"'{name}.sweep.displacements' = {cfg['sweep']['displacements']}",
-                f"'{name}.shear_speed' = {cfg['shear_speed']}"]
+                f"'{name}.shear_speed' = {cfg['shear_speed']}",
+                f"'{name}.max_inertial_number' = {cfg['max_inertial_number']}"]
     runup = next((key for key in ("record_start", "load_time") if key in cfg), None)
     if runup is not None:
         keys.append(f"'{name}.{runup}' = {cfg[runup]}")

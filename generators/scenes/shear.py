@@ -52,6 +52,46 @@ def split_height(cfg: dict) -> float:
     return 0.5 * float(cfg["box"][2])
 
 
+def mean_diameter(cfg: dict) -> float:
+    """The soil's nominal mean diameter d (m): twice the mean of the uniform ``radius`` range."""
+    return float(cfg["radius"][0] + cfg["radius"][1])
+
+
+def inertial_number(cfg: dict, speed: float, normal_stress: float) -> float:
+    """The inertial number I = gamma_dot d sqrt(rho / sigma_n) of a shear at ``speed`` (m/s) under
+    ``normal_stress`` (Pa), with the shear rate gamma_dot = v / H over the specimen height H (the box's) and d
+    the nominal mean diameter (GDR MiDi 2004; da Cruz et al. 2005): quasi-static below about 1e-3."""
+    rate = speed / float(cfg["box"][2])
+    return rate * mean_diameter(cfg) * math.sqrt(float(cfg["density"]) / normal_stress)
+
+
+def target_speed(cfg: dict, normal_stress: float) -> float:
+    """The lower half's speed (m/s) under ``normal_stress``: ``shear_speed`` where set, else the fastest whose
+    inertial number is ``max_inertial_number``, v = I_max H sqrt(sigma_n / rho) / d."""
+    if cfg["shear_speed"] is not None:
+        return float(cfg["shear_speed"])
+    return (float(cfg["max_inertial_number"]) * float(cfg["box"][2]) * math.sqrt(normal_stress / float(cfg["density"]))
+            / mean_diameter(cfg))
+
+
+def slowest_speed(cfg: dict) -> float:
+    """The slowest shear of the sweep (m/s): at its smallest normal stress (the longest frames)."""
+    return min(target_speed(cfg, stress) for stress in normal_stress_values(cfg))
+
+
+def frame_steps(row: dict, dt: float) -> int:
+    """DEM steps per recorded frame: the frame interval displacement / (speed (frames - 1)) in whole multiples of
+    FORCE_SAMPLES steps, the nearest, or one multiple more where the nearest would shear faster than
+    ``max_inertial_number`` allows."""
+    speed = target_speed(row, row["normal_stress"])
+    interval = row["displacement"] / (speed * (row["frames"] - 1))
+    every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
+    actual = row["displacement"] / (every * dt * (row["frames"] - 1))
+    if inertial_number(row, actual, row["normal_stress"]) > row["max_inertial_number"]:
+        every += FORCE_SAMPLES
+    return every
+
+
 def young_values(cfg: dict) -> list[float]:
     """The swept moduli: ``sweep.n_young`` values spaced evenly in log between ``sweep.young``."""
     lo, hi = cfg["sweep"]["young"]
@@ -271,6 +311,22 @@ def dem_step(cfg: dict, where: str) -> tuple[float, float, float]:
     return contact.time_step(cfg, where, 3)
 
 
+def check_quasi_static(cfg: dict) -> None:
+    """Refuse an explicit ``shear_speed`` whose inertial number exceeds ``max_inertial_number`` at the sweep's
+    smallest normal stress (where it is largest), naming both keys and the fastest speed allowed."""
+    if cfg["shear_speed"] is None:
+        return
+    stress = min(normal_stress_values(cfg))
+    value = inertial_number(cfg, cfg["shear_speed"], stress)
+    if value > cfg["max_inertial_number"]:
+        allowed = dict(cfg, shear_speed=None)
+        raise ConfigError(f"config key 'shear.shear_speed' = {cfg['shear_speed']} m/s shears at the inertial number "
+                          f"I = {value:.3g} under the smallest swept normal stress ({stress:g} Pa), above "
+                          f"'shear.max_inertial_number' = {cfg['max_inertial_number']} (quasi-static: I at most "
+                          f"that): set shear_speed at most {target_speed(allowed, stress):.3g} m/s, or null (derived "
+                          "per sim from its normal stress), or raise max_inertial_number")
+
+
 class Shear(Scene):
     name = "shear"
     dim = 3
@@ -321,11 +377,11 @@ class Shear(Scene):
     def simulate_setup(self, row: dict, packing: dem.Particles) -> dem.Setup:
         """The platen placed on the soil (:func:`loaded`) loads it for ``load_time`` (its external force
         ramping up over the first half), the box still; then the lower box moves along +x at a speed that
-        gives exactly ``displacement`` at the last frame, frame 0 at the start of the shear."""
+        gives exactly ``displacement`` at the last frame (:func:`frame_steps`: at most ``max_inertial_number``),
+        frame 0 at the start of the shear."""
         step = dem_step(row, where=row["id"])
         dt = step[0]
-        interval = row["displacement"] / (row["shear_speed"] * (row["frames"] - 1))
-        every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
+        every = frame_steps(row, dt)
         start = every * int(math.ceil(row["load_time"] / (every * dt)))     # recording starts on a frame step
         speed = row["displacement"] / (every * dt * (row["frames"] - 1))
         box_lower, box_upper = domain(row, row["domain_displacement"])
@@ -338,9 +394,11 @@ class Shear(Scene):
                           box_upper=box_upper)
 
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
-        return {"split_height": split_height(row), "shear_speed": setup.motions[0].velocity[0],
-                "platen_force": setup.platen.force, "load_steps": setup.schedule.start,
-                "shear_area": float(row["box"][0] * row["box"][1])}
+        speed = setup.motions[0].velocity[0]
+        return {"split_height": split_height(row), "shear_speed": speed, "shear_rate": speed / float(row["box"][2]),
+                "inertial_number": inertial_number(row, speed, row["normal_stress"]),
+                "platen_force": setup.platen.force,
+                "load_steps": setup.schedule.start, "shear_area": float(row["box"][0] * row["box"][1])}
 
     def observables(self, row: dict, setup: dem.Setup, frames: dem.Frames) -> dict[str, np.ndarray]:
         return observables(row, frames.position, frames.group_force, setup.particles.groups)
@@ -359,6 +417,7 @@ class Shear(Scene):
     def check(self, cfg: dict) -> None:
         check_range(self.name, "sweep.young", cfg["sweep"]["young"])
         check_range(self.name, "sweep.normal_stress", cfg["sweep"]["normal_stress"])
+        check_quasi_static(cfg)
         length, width, _ = cfg["box"]
         weight = cfg["platen_mass"] * cfg["gravity"]
         if weight >= min(cfg["sweep"]["normal_stress"]) * length * width:

@@ -23,12 +23,19 @@ RATIO_AGREEMENT = 0.25              # LAMMPS and YADE peak ratios tau / sigma_n 
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    """engine -> [the sim at 5 kPa, the sim at 50 kPa], both at E = 1e7 Pa, from one LAMMPS-settled packing;
-    "lammps_stiff": the same at E = 1e8 Pa in LAMMPS."""
+def packed(tmp_path_factory):
+    """(the config, a folder holding its one LAMMPS-settled packing in packing/)."""
     cfg = config.load({"scale": "ci", "shear": OVERRIDES})["shear"]
     root = tmp_path_factory.mktemp("shear_load")
     engine.prepare(shear.SCENE, "lammps", shear.SCENE.packings(cfg)[0], root / "packing")
+    return cfg, root
+
+
+@pytest.fixture(scope="module")
+def runs(packed):
+    """engine -> [the sim at 5 kPa, the sim at 50 kPa], both at E = 1e7 Pa, from one LAMMPS-settled packing;
+    "lammps_stiff": the same at E = 1e8 Pa in LAMMPS."""
+    cfg, root = packed
     table = sweep.build("shear", cfg)
     rows = [table.iloc[i].to_dict() for i in (0, 1)]
     assert [r["normal_stress"] for r in rows] == [5.0e3, 5.0e4] and {r["young"] for r in rows} == {1.0e7}
@@ -64,6 +71,43 @@ def test_observables_are_stored_per_frame(runs, name):
         assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
         assert traj.property_names == ("young", "normal_stress")
         assert traj.parameters["log_scaled_properties"] == ["young", "normal_stress"]
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_the_shear_rate_and_its_inertial_number_are_recorded(runs, name):
+    """Each sim's H5MD parameters hold its speed, shear rate v / H, inertial number (at most the config's limit)
+    and DEM steps per frame; the speed gives the sim's displacement over the recorded window."""
+    for row, traj in runs[name]:
+        p = traj.parameters
+        assert p["shear_rate"] == pytest.approx(p["shear_speed"] / row["box"][2], rel=1e-12)
+        assert p["inertial_number"] == pytest.approx(shear.inertial_number(row, p["shear_speed"], row["normal_stress"]),
+                                                     rel=1e-12)
+        assert p["inertial_number"] <= row["max_inertial_number"]
+        assert p["steps_per_frame"] % shear.FORCE_SAMPLES == 0
+        window = float(traj.time[-1] - traj.time[0])
+        assert p["shear_speed"] * window == pytest.approx(row["displacement"], rel=1e-9)
+
+
+def test_a_quasi_static_sim_shears_at_the_inertial_number_limit(packed, tmp_path):
+    """The default scale's rule on the test's packing: no shear_speed, I at most 1e-3, so at 50 kPa the lower half
+    moves at v = 1e-3 H sqrt(sigma_n / rho) / d (16 mm/s, 6x slower than the ci scale's 0.1 m/s) and a frame of the
+    same displacement takes 6x the steps; the box's recorded x is x0 + v t and the recorded I within one rounding
+    step below the limit (LAMMPS; 0.5 mm in 2 frames)."""
+    cfg, root = packed
+    row = dict(sweep.build("shear", cfg).iloc[1].to_dict(), engine="lammps", shear_speed=None,
+               max_inertial_number=1.0e-3, displacement=5.0e-4, frames=3)
+    assert row["normal_stress"] == 5.0e4
+    expected = 1.0e-3 * row["box"][2] * np.sqrt(5.0e4 / row["density"]) / shear.mean_diameter(row)
+    engine.simulate(shear.SCENE, row, root / "packing", tmp_path / "raw")
+    traj = convert.trajectory(tmp_path / "raw")
+    p = traj.parameters
+    assert 1.0e-3 * (1 - shear.FORCE_SAMPLES / p["steps_per_frame"]) < p["inertial_number"] <= 1.0e-3
+    assert p["shear_speed"] == pytest.approx(expected, rel=shear.FORCE_SAMPLES / p["steps_per_frame"])
+    t = (traj.time - traj.time[0]).astype(np.float64)
+    lower = (traj.species == shear.BOX) & (traj.position[0, :, 2] < shear.split_height(row))
+    moved = traj.position[:, lower, 0].astype(np.float64) - traj.position[:1, lower, 0]
+    np.testing.assert_allclose(moved, np.outer(t, np.full(lower.sum(), p["shear_speed"])), atol=2e-7)
+    np.testing.assert_allclose(traj.observables["shear_displacement"], [0.0, 2.5e-4, 5.0e-4], atol=2e-7)
 
 
 @pytest.mark.parametrize("name", ENGINES)

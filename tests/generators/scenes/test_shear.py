@@ -183,3 +183,76 @@ def test_dem_peak_shear_stress_metric_from_the_observables():
     assert crosscheck.metric_names("shear")[-2:] == ("Peak shear stress", "Peak stress ratio")
     assert crosscheck.metric_names("meteorite") == tuple(__import__("generators.scenes.meteorite",
                                                                     fromlist=["SCENE"]).SCENE.metrics.names)
+
+
+# ---- quasi-static loading: the inertial number (docs/scenes/shear.md, "Quasi-static loading") -----------------
+
+def test_inertial_number_by_hand(ci):
+    """I = (v / H) d sqrt(rho / sigma_n): 0.1 m/s over H = 30 mm, d = 2 x 7 mm (ci radii 6-8 mm), rho = 2650,
+    5 kPa: 3.333 x 0.014 x 0.7280 = 0.03397."""
+    assert shear.mean_diameter(ci) == pytest.approx(0.014)
+    assert shear.inertial_number(ci, 0.1, 5.0e3) == pytest.approx(0.1 / 0.03 * 0.014 * math.sqrt(2650.0 / 5.0e3))
+    assert shear.inertial_number(ci, 0.1, 5.0e3) == pytest.approx(0.03397, rel=1e-3)
+
+
+@pytest.fixture
+def default():
+    return config.load({"scale": "default"})["shear"]
+
+
+def test_the_default_derives_each_sims_speed_at_the_inertial_number_limit(default):
+    """Null shear_speed: v = I_max H sqrt(sigma_n / rho) / d, so I = max_inertial_number = 1e-3 exactly; a
+    stiffer load shears faster (sqrt(10) per decade of sigma_n)."""
+    assert default["shear_speed"] is None and default["max_inertial_number"] == 1.0e-3
+    speeds = [shear.target_speed(default, s) for s in shear.normal_stress_values(default)]
+    for stress, speed in zip(shear.normal_stress_values(default), speeds):
+        assert shear.inertial_number(default, speed, stress) == pytest.approx(1.0e-3, rel=1e-12)
+    assert speeds[-1] / speeds[0] == pytest.approx(math.sqrt(10.0))
+    assert speeds[0] == pytest.approx(1.0e-3 * 0.03 * math.sqrt(5.0e3 / 2650.0) / 0.008)
+    assert shear.slowest_speed(default) == speeds[0]
+
+
+def test_every_default_sim_shears_at_most_at_the_limit_in_whole_force_samples(default):
+    """The recorded frame's steps (a whole number of FORCE_SAMPLES) give the sim's displacement over its frames
+    at an inertial number at most the limit, and within one rounding step of it."""
+    for row in sweep.build("shear", default).to_dict("records"):
+        dt = shear.dem_step(row, "test")[0]
+        every = shear.frame_steps(row, dt)
+        assert every % shear.FORCE_SAMPLES == 0
+        speed = row["displacement"] / (every * dt * (row["frames"] - 1))
+        value = shear.inertial_number(row, speed, row["normal_stress"])
+        assert value <= row["max_inertial_number"]
+        assert value > row["max_inertial_number"] * (1 - shear.FORCE_SAMPLES / every * 1.01)
+
+
+def test_frame_steps_round_up_where_the_nearest_would_shear_too_fast(default):
+    """The nearest whole multiple of FORCE_SAMPLES steps below the exact interval shears faster than the
+    limit: one multiple more is taken. An explicit speed within the limit keeps the nearest (the ci scale's)."""
+    row = dict(sweep.build("shear", default).iloc[0].to_dict())
+    speed = shear.target_speed(row, row["normal_stress"])
+    interval = row["displacement"] / (speed * (row["frames"] - 1))
+    dt = interval / (shear.FORCE_SAMPLES * 40.4)           # the exact interval: 40.4 multiples; the nearest 40
+    assert shear.frame_steps(row, dt) == 41 * shear.FORCE_SAMPLES
+    dt = interval / (shear.FORCE_SAMPLES * 40.6)           # the nearest, 41, is already slower
+    assert shear.frame_steps(row, dt) == 41 * shear.FORCE_SAMPLES
+    explicit = dict(row, shear_speed=0.5 * speed)
+    dt = interval / (shear.FORCE_SAMPLES * 40.4) * 2        # at half the speed: 40.4 multiples again, 40 kept
+    assert shear.frame_steps(explicit, dt) == 40 * shear.FORCE_SAMPLES
+
+
+def test_an_explicit_speed_above_the_limit_is_refused_naming_both_keys(default):
+    from generators.config import ConfigError
+    with pytest.raises(ConfigError, match=r"'shear.shear_speed' = 0.1 m/s.*I = 0.0194.*5000 Pa.*"
+                                          r"'shear.max_inertial_number' = 0.001.*at most 0.00515 m/s"):
+        config.load({"scale": "default", "shear": {"shear_speed": 0.1}})
+    cfg = config.load({"scale": "default", "shear": {"shear_speed": 0.005}})["shear"]
+    assert shear.inertial_number(cfg, 0.005, 5.0e3) < 1.0e-3
+    faster = config.load({"scale": "default", "shear": {"shear_speed": 0.1, "max_inertial_number": 0.05}})
+    assert faster["shear"]["shear_speed"] == 0.1
+
+
+def test_a_max_inertial_number_out_of_range_is_refused():
+    from generators.config import ConfigError
+    for bad in (0.0, -1.0e-3, 2.0):
+        with pytest.raises(ConfigError, match="max_inertial_number"):
+            config.load({"scale": "default", "shear": {"max_inertial_number": bad}})
