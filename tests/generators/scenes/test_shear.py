@@ -205,7 +205,7 @@ def test_the_default_derives_each_sims_speed_at_the_inertial_number_limit(defaul
     stiffer load shears faster (sqrt(10) per decade of sigma_n)."""
     assert default["shear_speed"] is None and default["max_inertial_number"] == 1.0e-3
     speeds = [shear.target_speed(default, s) for s in shear.normal_stress_values(default)]
-    for stress, speed in zip(shear.normal_stress_values(default), speeds):
+    for stress, speed in zip(shear.normal_stress_values(default), speeds, strict=True):
         assert shear.inertial_number(default, speed, stress) == pytest.approx(1.0e-3, rel=1e-12)
     assert speeds[-1] / speeds[0] == pytest.approx(math.sqrt(10.0))
     assert speeds[0] == pytest.approx(1.0e-3 * 0.03 * math.sqrt(5.0e3 / 2650.0) / 0.008)
