@@ -4,7 +4,8 @@ the same way on the same test sims, scored with the same metrics against the dat
 * A DEM contender reruns the engine on the sims' own settled packings with changed settings
   (``dt_safety`` sets the time step as a fraction of the stable limit, ``dt_factor`` multiplies the
   data's, ``stiffness_factor`` the Young's modulus, the time step following the stable limit;
-  ``cores``: LAMMPS' MPI ranks or YADE's threads). Its time is the engine's own timing of
+  ``cores``: LAMMPS' MPI ranks or YADE's threads; ``engine``: the other engine, from the same packing). Its time
+  is the engine's own timing of
   the recorded window only; the run-up before the first frame and the process start-up (input,
   neighbour lists, output) are reported in their own columns, the settling on its own row.
 * A surrogate contender rolls the trained checkpoint out with other runtime switches; a contender
@@ -47,7 +48,7 @@ SIZE_KEYS = ("latent", "hidden", "message_passing")
 # how a surrogate contender runs, not what it computes: torch threads (default: performance.threads), and the
 # sims rolled out together (default 1)
 SURROGATE_EXECUTION = ("threads", "batch")
-DEM_KEYS = ("dt_safety", "dt_factor", "stiffness_factor", "cores")
+DEM_KEYS = ("dt_safety", "dt_factor", "stiffness_factor", "cores", "engine")
 
 
 def _peak_rss_mb() -> float:
@@ -72,7 +73,8 @@ def _scores(name: str, sims: list[tuple[str, h5md.Trajectory, np.ndarray]], hist
 def dem_row(row: dict, variant: dict) -> dict:
     """The sweep row of a DEM contender: the time step ``dt_safety`` x the stable limit, or the data's
     times ``dt_factor``, and the stiffness times ``stiffness_factor`` (the step follows the stable limit,
-    which scales as 1/sqrt(stiffness)). ``cores`` changes how it runs, not the row."""
+    which scales as 1/sqrt(stiffness)), in ``engine`` (absent: the data's) from the same settled packing.
+    ``cores`` changes how it runs, not the row."""
     unknown = set(variant) - set(DEM_KEYS)
     if unknown:
         raise ValueError(f"DEM contender: unknown keys {sorted(unknown)}; allowed: {', '.join(DEM_KEYS)}")
@@ -83,7 +85,8 @@ def dem_row(row: dict, variant: dict) -> dict:
         raise ValueError("DEM contenders scale dt_safety: the scene must not fix an explicit dt")
     safety = float(variant["dt_safety"]) if "dt_safety" in variant else \
         row["dt_safety"] * float(variant.get("dt_factor", 1.0))
-    return {**row, "dt_safety": safety, "young": row["young"] * float(variant.get("stiffness_factor", 1.0))}
+    return {**row, "dt_safety": safety, "young": row["young"] * float(variant.get("stiffness_factor", 1.0)),
+            "engine": variant.get("engine", row["engine"])}
 
 
 def execution(variant: dict, engine_name: str) -> tuple[int, int]:
@@ -97,7 +100,7 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
                   frames: list[int] | None = None) -> dict:
     """Time and score one DEM contender on the sims of ``rows`` (truth in ``truths``)."""
     dem = scenes.get(scene)
-    ranks, threads = execution(variant, rows[0]["engine"])
+    ranks, threads = execution(variant, variant.get("engine", rows[0]["engine"]))
     seconds, wall, steps_per_frame, per_step, peak, scored, work, blown = [], [], [], [], [], [], [], []
     startup, runup, dt_over_limit, particles = [], [], [], []
     for row, packing, truth_path in zip(rows, packings, truths, strict=True):

@@ -89,7 +89,9 @@ def _schema_at(schema: dict, path: list[Any], root: dict) -> dict:
         if isinstance(part, int):
             node = node.get("items", {})
         else:
-            node = _object_form(node, root).get("properties", {}).get(part, {})
+            form = _object_form(node, root)
+            extra = form.get("additionalProperties")
+            node = form.get("properties", {}).get(part, extra if isinstance(extra, dict) else {})
     return _flatten(node, root)
 
 
@@ -229,9 +231,11 @@ def _defaults() -> dict:
 @functools.cache
 def schema() -> dict:
     """The root schema with every registered scene's fragment under ``properties.<scene>`` and the registered
-    engines (generators/engines.py) as the choices of each scene's ``engine``."""
+    engines (generators/engines.py) as the choices of each scene's ``engine`` and of a DEM contender's."""
     root = _yaml(DEFAULTS.joinpath("schema.yaml"))
     root["$defs"]["dem_scene"]["properties"]["engine"]["enum"] = engines.names()
+    root["$defs"]["performance"]["properties"]["dem"]["additionalProperties"]["properties"]["engine"]["enum"] = \
+        engines.names()
     for name in scenes.names():
         root["properties"][name] = _yaml(SCENES_DIR.joinpath(f"{name}.schema.yaml"))
         root["required"].append(name)
@@ -401,6 +405,9 @@ def _check_contenders(name: str, cfg: dict) -> None:
             raise ConfigError(f"config key '{name}.performance.{key}' = {perf[key]!r} is not a {kind} contender; "
                               f"allowed: {sorted(perf[kind])} (the keys of '{name}.performance.{kind}')")
     for contender, changes in perf["dem"].items():
+        if changes.get("engine", cfg["engine"]) not in scenes.get(name).engines:
+            raise ConfigError(f"config key '{name}.performance.dem.{contender}.engine' = {changes['engine']!r}: the "
+                              f"{name} scene runs in {', '.join(scenes.get(name).engines)}")
         if "dt_safety" in changes and "dt_factor" in changes:
             raise ConfigError(f"config key '{name}.performance.dem.{contender}': give dt_safety (a fraction of the "
                               "stable limit) or dt_factor (a multiple of the data's step), not both")

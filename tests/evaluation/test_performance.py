@@ -52,7 +52,8 @@ def test_dem_contender_settings_scale_the_step_and_the_stiffness():
     assert performance.dem_row(row, {"dt_safety": 0.5}) == {**row, "dt_safety": 0.5}
     assert performance.dem_row(row, {"stiffness_factor": 0.01}) == {**row, "young": pytest.approx(1e7)}
     assert performance.dem_row(row, {"cores": 2, "dt_safety": 0.1}) == {**row, "dt_safety": 0.1}  # cores: not physics
-    allowed = "dt_safety, dt_factor, stiffness_factor, cores"
+    assert performance.dem_row(row, {"engine": "yade", "dt_safety": 0.5}) == {**row, "dt_safety": 0.5, "engine": "yade"}
+    allowed = "dt_safety, dt_factor, stiffness_factor, cores, engine"
     with pytest.raises(ValueError, match=rf"unknown keys \['dt'\]; allowed: {allowed}"):
         performance.dem_row(row, {"dt": 1e-4})
     with pytest.raises(ValueError, match="not both"):
@@ -65,6 +66,16 @@ def test_cores_are_mpi_ranks_in_lammps_and_threads_in_yade():
     assert performance.execution({"cores": 2}, "lammps") == (2, 1)
     assert performance.execution({"cores": 2}, "yade") == (1, 2)
     assert performance.execution({}, "yade") == (1, 1)
+
+
+def test_a_dem_contender_in_another_engine_is_checked_when_the_config_is_read():
+    from generators import config
+    from generators.errors import ConfigError
+    cfg = config.load({"scale": "ci", "slide": {"performance": {"dem": {"yade_half": {"engine": "yade",
+                                                                                      "dt_safety": 0.5}}}}})
+    assert cfg["slide"]["performance"]["dem"]["yade_half"] == {"engine": "yade", "dt_safety": 0.5}
+    with pytest.raises(ConfigError, match=r"'slide.performance.dem.x.engine' = 'abaqus'.*\['lammps', 'yade'\]"):
+        config.load({"scale": "ci", "slide": {"performance": {"dem": {"x": {"engine": "abaqus"}}}}})
 
 
 def test_the_match_must_be_as_accurate_on_every_scene_metric():
