@@ -102,7 +102,7 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
     dem = scenes.get(scene)
     ranks, threads = execution(variant, variant.get("engine", rows[0]["engine"]))
     seconds, wall, steps_per_frame, per_step, peak, scored, work, blown = [], [], [], [], [], [], [], []
-    startup, runup, dt_over_limit, particles = [], [], [], []
+    startup, runup, dt_over_limit, particles, per_sim = [], [], [], [], {}
     for row, packing, truth_path in zip(rows, packings, truths, strict=True):
         truth = h5md.read(truth_path)
         runs = []
@@ -134,9 +134,12 @@ def dem_contender(name: str, variant: dict, scene: str, rows: list[dict], packin
         peak.append(max(m.run.max_rss_mb for m in runs))
         scored.append((row["id"], truth, prediction))
         work.append((predicted, int((~np.asarray(truth.kinematic, bool)).sum())))
+        per_sim[row["id"]] = {"seconds_per_frame": seconds[-1] / predicted, "steps_per_frame": steps_per_frame[-1],
+                              "seconds_per_dem_step": per_step[-1], "particles": truth.n_particles,
+                              "moving": work[-1][1]}
     out = {"contender": name, "kind": "dem", "settings": json.dumps(variant, sort_keys=True), "trained": True,
            "stable": not blown, "blown_up": " | ".join(blown), "sims": len(scored), "ranks": ranks,
-           "threads": threads, "cores": ranks * threads}
+           "threads": threads, "cores": ranks * threads, "per_sim": json.dumps(per_sim, sort_keys=True)}
     if not scored:
         return out
     per_rollout = float(np.mean(seconds))
@@ -189,6 +192,8 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
                                     timing["nodes_per_step"], timing["edges_per_step"], runtime.split_edge_mlp,
                                     timing["decoded_per_step"])))
         scored.append((sim.id, traj, run.position))
+    per_sim = {sim.id: {"seconds_per_frame": s / f, "particles": n, "moving": m}
+               for sim, s, (f, m, _), n in zip(sims, seconds, work, particles, strict=True)}
     n_frames = sum(f for f, _, _ in work)
     gflop = sum(f * g for f, _, g in work)
     out = {"contender": name, "kind": "surrogate", "settings": json.dumps(variant, sort_keys=True),
@@ -203,7 +208,7 @@ def surrogate_contender(name: str, variant: dict, checkpoint_path: Path, base: r
            "runtime": json.dumps(runtime.as_dict(), sort_keys=True),
            "parameters": sum(p.numel() for p in simulator.parameters()), "edges_per_step": float(np.mean(edges)),
            "graph_building_share": float(np.mean(graph_share)), "gflop_per_frame": gflop / n_frames,
-           "gflop_per_second": gflop / sum(seconds)}
+           "gflop_per_second": gflop / sum(seconds), "per_sim": json.dumps(per_sim, sort_keys=True)}
     if trained:
         out.update(_scores(name, scored, simulator.history, body_displacement, frames))
     return out

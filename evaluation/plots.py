@@ -252,6 +252,30 @@ def speedup_substeps(table: pd.DataFrame, main: str, path: Path, title: str) -> 
     return _finish(fig, ax, path, title, legend_size=7)
 
 
+def performance_map(sims: pd.DataFrame, path: Path, title: str) -> Path:
+    """Where the surrogate pays (evaluation/performance_map.py): per test sim (a dot) and DEM comparison (a colour),
+    the surrogate's speed-up against the DEM sub-steps per frame that DEM contender took on that sim (log-log); the
+    line speed-up = n / n* through the comparison's median break-even n*, and speed-up 1 (break-even) and 10."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    colours = dict(zip(("as accurate", "as accurate by MSE", "reference"), ("#d43d2a", "#2a6fd4", "#777777"),
+                       strict=True))
+    for match, part in sims.groupby("match", sort=False):
+        colour = colours.get(match, "#2ca02c")
+        n_star = float(part["break_even_steps"].median())
+        label = plain(f"{match}: {part['dem_contender'].iloc[0]} (break-even {n_star:.3g} sub-steps per frame)")
+        ax.scatter(part["dem_steps_per_frame"], part["speedup"], color=colour, s=30, zorder=3, label=label)
+        n = np.logspace(np.log10(max(1.0, part["dem_steps_per_frame"].min() / 3)),
+                        np.log10(part["dem_steps_per_frame"].max() * 3), 30)
+        ax.plot(n, n / n_star, color=colour, lw=0.9)
+    ax.axhline(1.0, color="black", lw=0.8)
+    ax.axhline(10.0, color="grey", lw=0.8, ls="--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("DEM sub-steps per recorded frame on the sim (log)")
+    ax.set_ylabel(plain(f"speed-up of {sims['surrogate'].iloc[0]} on the sim (log)" if len(sims) else "speed-up"))
+    return _finish(fig, ax, path, title, legend_size=7)
+
+
 def stability(frames: pd.DataFrame, path: Path, title: str) -> Path:
     """Kinetic energy (log) and the overlap distribution (max and 99th percentile of overlap / radius)
     per frame of each long rollout, frames outside the physical envelope marked."""

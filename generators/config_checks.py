@@ -71,7 +71,7 @@ def check_section(name: str, scene, cfg: dict, max_sims: int) -> None:
     check_window(name, cfg)
     check_split(name, scene, cfg, max_sims)
     check_restitution(name, cfg)
-    check_steps(name, scene.dim, cfg)
+    check_steps(name, scene, cfg)
 
 
 def check_window(name: str, cfg: dict) -> None:
@@ -147,31 +147,27 @@ def _steps(name: str, cfg: dict, limit: float) -> list[tuple[float, str]]:
     return out
 
 
-def _recording(name: str, cfg: dict) -> tuple[float, float, str]:
+def _recording(name: str, scene, cfg: dict) -> tuple[float, float, str]:
     """(frame interval, run-up before frame 0, the keys they come from) of the section's recorded runs: its
-    ``frame_interval``, or where a motion sets the interval, the largest ``sweep.displacements`` over the
-    slowest shear (``shear_speed``, or derived from ``max_inertial_number``) spread over the frames; the run-up
+    ``frame_interval``, or where a motion sets the interval, the scene's longest (``Scene.motion_interval``, e.g.
+    the largest ``sweep.displacements`` over the slowest shear spread over the frames); the run-up
     ``record_start`` or ``load_time``."""
     frames = cfg["frames"]
     if "frame_interval" in cfg:
         interval, keys = cfg["frame_interval"], [f"'{name}.frame_interval' = {cfg['frame_interval']}"]
     else:
-        from generators.scenes import shear
-        largest = max(cfg["sweep"]["displacements"])
-        interval = largest / shear.slowest_speed(cfg) / (frames - 1)
-        keys = [f"'{name}.sweep.displacements' = {cfg['sweep']['displacements']}",
-                f"'{name}.shear_speed' = {cfg['shear_speed']}",
-                f"'{name}.max_inertial_number' = {cfg['max_inertial_number']}"]
+        interval, read = keys_read(scene.motion_interval, cfg, name)
+        keys = [read]
     runup = next((key for key in ("record_start", "load_time") if key in cfg), None)
     if runup is not None:
         keys.append(f"'{name}.{runup}' = {cfg[runup]}")
     return interval, cfg.get(runup, 0.0) if runup else 0.0, ", ".join([*keys, f"'{name}.frames' = {frames}"])
 
 
-def check_steps(name: str, dim: int, cfg: dict) -> None:
+def check_steps(name: str, scene, cfg: dict) -> None:
     """Each run's steps (per frame, in the run, and the settling's) fit LAMMPS' 32-bit counts at every step."""
-    limit, material = _stable_limit(name, dim, cfg)
-    interval, runup, timing = _recording(name, cfg)
+    limit, material = _stable_limit(name, scene.dim, cfg)
+    interval, runup, timing = _recording(name, scene, cfg)
     steps = _steps(name, cfg, limit)
     for dt, source in steps:
         per_frame = interval / dt if dt > 0 else math.inf

@@ -159,6 +159,11 @@ class Scene(ABC):
 
     # ---- data ----------------------------------------------------------------------------------
 
+    def motion_interval(self, cfg: dict) -> float:
+        """The longest frame interval (s) of the sweep where a motion sets it, in a scene whose section has no
+        ``frame_interval`` (the config checks' step count)."""
+        raise NotImplementedError(f"the {self.name} scene has no frame_interval key and no motion_interval")
+
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict[str, Any]:
         """Scene parameters stored in the sim's H5MD /parameters besides the sweep row."""
         return {}

@@ -45,6 +45,9 @@ def register(sub) -> None:
     p.add_argument("--out", type=output_file, required=True)
     p.add_argument("--plot", type=output_file, required=True)
     p.add_argument("--substeps-plot", type=output_file, help="the speed-up against DEM sub-steps per frame (PNG)")
+    p.add_argument("--map", type=output_file, help="where the surrogate pays, per test sim (CSV; "
+                                                   "evaluation/performance_map.py)")
+    p.add_argument("--map-plot", type=output_file, help="the map's plot: speed-up per sim against its DEM sub-steps")
     p.add_argument("--title", default="run time against error")
 
 
@@ -89,6 +92,12 @@ def run_report(args) -> None:
     plots.pareto(table, args.plot, args.title)
     if args.substeps_plot:
         plots.speedup_substeps(table, args.main, args.substeps_plot, f"{args.title}: speed-up against DEM sub-steps")
+    if args.map:
+        from evaluation import performance_map
+        sims = performance_map.sim_map(table, args.main, args.reference)
+        options.write_table(sims, args.map)
+        if args.map_plot:
+            plots.performance_map(sims, args.map_plot, f"{args.title}: where the surrogate pays, per test sim")
     main = table[table["main"].astype(bool)].iloc[0]
     matched = (f"{main['speedup_vs_matched_dem']:.2f}x faster than {main['matched_dem']} (the fastest DEM at least as "
                f"accurate on the MSE and every scene metric)" if main["matched_dem"] else

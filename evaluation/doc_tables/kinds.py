@@ -197,6 +197,18 @@ def speed(table: pd.DataFrame) -> str:
                     rows)
 
 
+def sim_map(table: pd.DataFrame) -> str:
+    """results/<scene>/performance_map.csv: a row per comparison and test sim: the DEM contender, its sub-steps and
+    milliseconds per frame on the sim, the surrogate's, the speed-up, the break-even sub-steps and whether it pays."""
+    rows = [[str(r["match"]), f"{r['dem_contender']}", str(r["sim"]), f"{int(r['particles'])} ({int(r['moving'])})",
+             f"{float(r['dem_steps_per_frame']):.0f}", f"{float(r['dem_ms_per_frame']):{NUMBER}}",
+             f"{float(r['surrogate_ms_per_frame']):{NUMBER}}", f"{float(r['speedup']):{NUMBER}}x",
+             f"{float(r['break_even_steps']):.0f}", "yes" if str(r["pays"]) == "True" else "no"]
+            for r in table.to_dict("records")]
+    return markdown(["DEM compared", "DEM contender", "sim", "particles (moving)", "DEM sub-steps per frame",
+                     "DEM ms per frame", "Graph-DEM ms per frame", "speed-up", "break-even sub-steps", "pays"], rows)
+
+
 def card(table: pd.DataFrame) -> str:
     """results/<benchmark>/card.csv: a row per quantity and protocol K, a column per method (measured, then the
     article's); a measured cell is the mean over the seeds ± their standard deviation (blow-ups: the total)."""
@@ -231,6 +243,9 @@ KINDS = {kind.name: kind for kind in (
     Kind("summary", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, summary),
     Kind("speed", "{subject}/performance.csv", ("contender", "kind", "seconds_per_frame", "mse",
                                               "speedup_vs_reference"), PERFORMANCE, speed),
+    Kind("map", "{subject}/performance_map.csv", ("sim", "match", "dem_contender", "dem_steps_per_frame", "speedup",
+                                                   "break_even_steps", "pays"),
+         ("evaluation/performance_map.py", *PERFORMANCE), sim_map),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,
          card),
 )}

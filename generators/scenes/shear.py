@@ -393,6 +393,10 @@ class Shear(Scene):
                           force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
                           box_upper=box_upper)
 
+    def motion_interval(self, cfg: dict) -> float:
+        """The longest frame interval: the largest swept displacement at the slowest shear, over the frames."""
+        return max(float(d) for d in cfg["sweep"]["displacements"]) / slowest_speed(cfg) / (cfg["frames"] - 1)
+
     def h5md_parameters(self, row: dict, setup: dem.Setup) -> dict:
         speed = setup.motions[0].velocity[0]
         return {"split_height": split_height(row), "shear_speed": speed, "shear_rate": speed / float(row["box"][2]),

@@ -147,5 +147,8 @@ def test_a_batched_surrogate_contender_scores_as_the_unbatched_one(tiny_dataset,
         assert together["edges_per_step"] == pytest.approx(alone["edges_per_step"])
         assert together["gflop_per_frame"] == pytest.approx(alone["gflop_per_frame"])
         assert 0 < together["seconds_per_rollout"] < float("inf")
+    per_sim = json.loads(alone["per_sim"])            # each sim's own time per frame: they average to the row's
+    assert len(per_sim) == 2 and all(s["moving"] <= s["particles"] for s in per_sim.values())
+    assert np.mean([s["seconds_per_frame"] for s in per_sim.values()]) == pytest.approx(alone["seconds_per_frame"])
     with pytest.raises(ValueError, match="batch = 0"):
         performance.timed_rollouts(simulator, [], base, False, 1, batch=0)

@@ -403,6 +403,7 @@ def test_a_sweep_larger_than_n_sims_allows_is_refused():
      "slide.performance.dem.x.stiffness_factor"),
     ({"shear": {"sweep": {"displacements": [1.0e6]}}}, "shear.sweep.displacements"),
     ({"shear": {"load_time": 1.0e9}}, "shear.load_time"),
+    ({"shear": {"shear_speed": None, "max_inertial_number": 1.0e-9}}, "shear.max_inertial_number"),
 ])
 def test_a_run_whose_steps_overflow_lammps_counts_is_refused(override, key):
     with pytest.raises(config.ConfigError) as err:

@@ -140,6 +140,13 @@ def test_performance_stage_outputs(workdir):
         assert table.at[lever, "mse"] == pytest.approx(main["mse"], rel=1e-4)
     assert table.at["batch_4", "batch"] == 4
     assert (res / "plots" / "speedup_substeps.png").stat().st_size > 10_000
+    # the map: per test sim, the reference's sub-steps over the break-even are its speed-up (the DEM's own timing)
+    sims = pd.read_csv(res / "performance_map.csv")
+    ref_sims = sims[sims["match"] == "reference"]
+    assert len(ref_sims) == main["sims"] and (ref_sims["dem_contender"] == "reference").all()
+    assert list(ref_sims["speedup"]) == pytest.approx(list(ref_sims["dem_steps_per_frame"]
+                                                          / ref_sims["break_even_steps"]), rel=0.05)
+    assert (res / "plots" / "performance_map.png").stat().st_size > 10_000
     # exact switches: same error with and without them
     assert table.at["no_skipping", "mse"] == pytest.approx(main["mse"], rel=1e-4)
     assert pd.isna(table.at["article_size", "mse"]) and not table.at["article_size", "trained"]

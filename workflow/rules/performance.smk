@@ -64,6 +64,10 @@ rule performance:
         substeps=report("results/{scene}/plots/speedup_substeps.png", caption="../report/performance.rst",
                         category=report_category, subcategory="performance",
                         labels={"figure": "speed-up against DEM sub-steps per frame", "scene": "{scene}"}),
+        map="results/{scene}/performance_map.csv",
+        map_plot=report("results/{scene}/plots/performance_map.png", caption="../report/performance.rst",
+                        category=report_category, subcategory="performance",
+                        labels={"figure": "where the surrogate pays, per test sim", "scene": "{scene}"}),
     params:
         main=stage_setting("performance", "main"),
         reference=stage_setting("performance", "reference"),
@@ -74,4 +78,5 @@ rule performance:
     shell:
         "graphdem performance-report --tables {input.tables:q} --packings {input.packings:q} --main {params.main:q} "
         "--reference {params.reference:q} --out {output.table:q} --plot {output.plot:q} --substeps-plot {output.substeps:q} "
+        "--map {output.map:q} --map-plot {output.map_plot:q} "
         "--title '{wildcards.scene}: run time against error' > {log} 2>&1"
