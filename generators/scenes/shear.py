@@ -201,12 +201,38 @@ def platen_force(row: dict) -> float:
     return -(row["normal_stress"] * length * width - row["platen_mass"] * row["gravity"])
 
 
+def flanges(cfg: dict) -> dem.Particles:
+    """The box's two flanges at the split plane, as deep as the sweep's largest displacement (``domain_displacement``):
+    they stand for the thickness of a laboratory box's walls, which the wall spheres (one layer) lack. Without them
+    the shear opens a gap as wide as the displacement at the trailing edge, through which the upper half's soil
+    falls out of the box once it is wider than a sphere (12 mm of quasi-static shear lost a sphere so):
+
+    - trailing flange (lower half, moves with it): a plate of wall spheres just below the split plane (centres at
+      z_s - r_w) outside the box's x = 0 face, from the face back by the displacement; as the lower half moves
+      it slides under the upper half's soil at the trailing edge and carries it, as a thick wall's top would;
+    - leading flange (upper half, held): a plate just above the split plane (centres at z_s + r_w) outside the
+      x = L face, out by the displacement: a lid over the lower half's soil that the shear carries past x = L.
+
+    Both span the box's width and its side walls, on the walls' square grid."""
+    length, width, _ = cfg["box"]
+    rw, reach = cfg["wall_radius"], float(cfg["domain_displacement"])
+    step = cfg["wall_spacing"] * rw
+    ys = _grid(-rw, width + rw, step)
+    trailing = _grid(-rw - reach, -rw, step)[:-1]
+    leading = _grid(length + rw, length + rw + reach, step)[1:]
+    zs = split_height(cfg)
+    xyz = np.concatenate([np.stack(np.meshgrid(trailing, ys, [zs - rw], indexing="ij"), -1).reshape(-1, 3),
+                          np.stack(np.meshgrid(leading, ys, [zs + rw], indexing="ij"), -1).reshape(-1, 3)])
+    lower = np.arange(len(xyz)) < len(trailing) * len(ys)
+    return dem.Particles(xyz, np.full(len(xyz), rw), np.full(len(xyz), BOX), {LOWER: lower})
+
+
 def loaded(packing: dem.Particles, row: dict) -> dem.Particles:
-    """The settled packing with the platen on it and the groups of a sim: the lower half (moved), the upper
-    half (its force is the shear force) and the platen."""
+    """The settled packing with its flanges (:func:`flanges`) and the platen on it, and the groups of a sim: the
+    lower half (moved), the upper half (its force is the shear force) and the platen."""
     soil = packing.subset(packing.species == SOIL)
     platen = platen_particles(row, soil)
-    full = packing.concat(platen)
+    full = packing.concat(flanges(row)).concat(platen)
     box = full.species == BOX
     groups = {LOWER: full.groups[LOWER] & box, UPPER: box & ~full.groups[LOWER], PLATEN_GROUP: full.species == PLATEN}
     return dem.Particles(full.x, full.radius, full.species, groups)
@@ -239,11 +265,13 @@ def peak_shear_stress(shear_stress, smooth: int = 1) -> float:
 
 
 def domain(cfg: dict, displacement: float) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds every particle must stay within: the box walls, shifted by the shear, plus a margin
-    of two wall diameters, and up to two box heights."""
+    """Bounds every particle must stay within: the box walls, shifted by the shear, plus a margin of two wall
+    diameters, and up to two box heights; a sim's (a row with ``domain_displacement``) reach back by its trailing
+    flange (:func:`flanges`) too."""
     length, width, height = cfg["box"]
     margin = 4.0 * cfg["wall_radius"]
-    return (np.array([-margin, -margin, -margin]),
+    reach = float(cfg.get("domain_displacement", 0.0))
+    return (np.array([-margin - reach, -margin, -margin]),
             np.array([length + displacement + margin, width + margin, 2.0 * height]))
 
 @dataclass

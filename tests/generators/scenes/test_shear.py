@@ -110,7 +110,7 @@ def test_platen_rests_on_the_highest_soil_without_overlap(ci):
 def test_loaded_packing_groups_and_species(ci):
     box = shear.box_particles(ci, ci["box"][2])
     packing = box.concat(soil_bed(ci))
-    full = shear.loaded(packing, dict(ci, normal_stress=1e4))
+    full = shear.loaded(packing, dict(ci, normal_stress=1e4, domain_displacement=0.006))
     species = full.species
     assert set(np.unique(species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
     assert shear.SCENE.species == {0: "box", 1: "soil", 2: "platen"}
@@ -120,6 +120,26 @@ def test_loaded_packing_groups_and_species(ci):
     assert np.array_equal(g[shear.LOWER] | g[shear.UPPER], species == shear.BOX)
     assert not (g[shear.LOWER] & g[shear.UPPER]).any()
     assert (full.x[g[shear.UPPER], 2] >= shear.split_height(ci)).all()
+
+
+def test_the_flanges_cover_the_gaps_the_shear_opens(ci):
+    """At the split plane the trailing flange (lower half) reaches back from x = 0 by the largest displacement and
+    the leading flange (upper half) out from x = L: after any displacement up to it, no hole in the plates (between
+    four neighbours) or between a plate and its box wall passes the smallest soil sphere, and both span the width."""
+    row = dict(ci, domain_displacement=0.012)
+    f = shear.flanges(row)
+    rw, (length, width, _), zs = ci["wall_radius"], ci["box"], shear.split_height(ci)
+    trailing, leading = f.x[f.groups[shear.LOWER]], f.x[~f.groups[shear.LOWER]]
+    assert np.allclose(trailing[:, 2], zs - rw) and np.allclose(leading[:, 2], zs + rw)
+    assert trailing[:, 0].max() < -rw and trailing[:, 0].min() == pytest.approx(-rw - 0.012)
+    assert leading[:, 0].min() > length + rw and leading[:, 0].max() == pytest.approx(length + rw + 0.012)
+    for plate, wall_x in ((trailing, -rw), (leading, length + rw)):
+        xs, ys = np.unique(np.append(plate[:, 0], wall_x)), np.unique(plate[:, 1])
+        assert ys.min() == pytest.approx(-rw) and ys.max() == pytest.approx(width + rw)
+        hole = math.hypot(np.diff(xs).max(), np.diff(ys).max()) - 2 * rw
+        assert hole < 2 * ci["radius"][0]
+    lo, hi = shear.domain(row, 0.012)
+    assert (f.x >= lo).all() and (f.x <= hi).all()
 
 
 def test_platen_force_counts_its_weight_in_the_load(ci):
