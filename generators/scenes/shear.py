@@ -421,6 +421,12 @@ class Shear(Scene):
                           force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
                           box_upper=box_upper)
 
+    def physics(self, trajectories: list, out_csv, out_png):
+        """The strength of the DEM data: peak and residual shear stress, dilation and inertial number per sim, and
+        the Mohr-Coulomb envelopes over the swept normal stresses (generators/scenes/shear_strength.py)."""
+        from generators.scenes import shear_strength
+        return shear_strength.physics(trajectories, out_csv, out_png)
+
     def motion_interval(self, cfg: dict) -> float:
         """The longest frame interval: the largest swept displacement at the slowest shear, over the frames."""
         return max(float(d) for d in cfg["sweep"]["displacements"]) / slowest_speed(cfg) / (cfg["frames"] - 1)
