@@ -57,3 +57,37 @@ def sim_map(table: pd.DataFrame, main: str, reference: str) -> pd.DataFrame:
                         "break_even_steps": s["seconds_per_frame"] / d["seconds_per_dem_step"],
                         "pays": bool(speedup >= 1.0)})
     return pd.DataFrame(out, columns=list(COLUMNS))
+
+
+def _verdict(pays: pd.Series) -> str:
+    """``pays`` on every sim, on none, or on k of n."""
+    if pays.all():
+        return "pays"
+    return "does not pay" if not pays.any() else f"pays on {int(pays.sum())} of {len(pays)} sims"
+
+
+def pays_row(scene: str, sims: pd.DataFrame) -> dict:
+    """One scene's row of the pays table from its map: the closest DEM comparison it has (as accurate on every
+    measure, else by the MSE, else the data's setting), the medians over its test sims of the particles, the DEM's
+    sub-steps and time per frame, the surrogate's, the break-even, and the speed-up with its range."""
+    match = next(m for m in MATCHES if (sims["match"] == m).any())
+    part = sims[sims["match"] == match]
+    return {"scene": scene, "sims": len(part), "match": match, "dem_contender": str(part["dem_contender"].iloc[0]),
+            "particles": float(part["particles"].median()),
+            "dem_steps_per_frame": float(part["dem_steps_per_frame"].median()),
+            "dem_steps_min": float(part["dem_steps_per_frame"].min()),
+            "dem_steps_max": float(part["dem_steps_per_frame"].max()),
+            "dem_ms_per_frame": float(part["dem_ms_per_frame"].median()),
+            "surrogate_ms_per_frame": float(part["surrogate_ms_per_frame"].median()),
+            "break_even_steps": float(part["break_even_steps"].median()),
+            "speedup": float(part["speedup"].median()), "speedup_min": float(part["speedup"].min()),
+            "speedup_max": float(part["speedup"].max()), "verdict": _verdict(part["pays"].astype(bool))}
+
+
+def pays_table(maps: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """The pays table: a row per scene (:func:`pays_row`), in the order given; a scene whose map is empty (no
+    comparison could be made) is refused by name."""
+    for scene, sims in maps.items():
+        if sims.empty:
+            raise ValueError(f"performance map of {scene!r} has no rows: no DEM contender could be compared")
+    return pd.DataFrame([pays_row(scene, sims) for scene, sims in maps.items()])

@@ -50,6 +50,12 @@ def register(sub) -> None:
     p.add_argument("--map-plot", type=output_file, help="the map's plot: speed-up per sim against its DEM sub-steps")
     p.add_argument("--title", default="run time against error")
 
+    p = gcli.add_command(sub, "performance-pays", run_pays,
+                         help="one row per scene: does the surrogate pay, by how much, and why (from the maps)")
+    p.add_argument("--maps", type=input_path, nargs="+", required=True,
+                   help="results/<scene>/performance_map.csv files (the scene is the folder's name)")
+    p.add_argument("--out", type=output_file, required=True)
+
 
 def run_dem(args) -> None:
     """Rerun the DEM on the sims of --sims (their settled packings) with the changes of --variant (dt_safety,
@@ -105,3 +111,17 @@ def run_report(args) -> None:
     print(f"{args.out}: {len(table)} rows; {main['contender']}: {main['seconds_per_frame'] * 1000:.2f} ms per frame, "
           f"{main['speedup_vs_reference']:.1f}x faster than the DEM reference, {matched}, break-even at "
           f"{main['break_even_substeps']:.0f} DEM sub-steps per frame")
+
+
+def run_pays(args) -> None:
+    """The pays table of the README (evaluation/performance_map.py, ``pays_table``): per scene, the median speed-up
+    over its test sims against the closest DEM comparison its map has, its range, the DEM sub-steps per frame
+    against the break-even, and the verdict."""
+    from evaluation import performance_map
+    from evaluation import tables as tables_csv
+    table = performance_map.pays_table({Path(p).parent.name: tables_csv.read_csv(p) for p in args.maps})
+    options.write_table(table, args.out)
+    for row in table.to_dict("records"):
+        print(f"{row['scene']}: {row['verdict']}, {row['speedup']:.3g}x (median over {row['sims']} sims) against "
+              f"{row['dem_contender']} ({row['match']}); {row['dem_steps_per_frame']:.0f} DEM sub-steps per frame, "
+              f"break-even {row['break_even_steps']:.0f}")

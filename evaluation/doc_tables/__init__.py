@@ -228,6 +228,8 @@ NAME is <subject>-<kind>: the table of that kind from results/<subject>/ (e.g. s
   metrics   results/<scene>/metrics.csv: a row per metric (MSE, the article's Acc, and skill, change error and
             errors in ensemble spreads where the CSV has them; intervals as 0.58 [0.41, 0.77]), a column per method
   speed     results/<scene>/performance.csv: a row per contender: ms per frame, rollout MSE, speed-up over the DEM
+  map       results/<scene>/performance_map.csv: per test sim, the surrogate's speed-up, DEM sub-steps, break-even
+  pays      results/performance_pays.csv (any subject, e.g. scenes-pays): a row per scene: pays or not, by how much, why
   card      results/<benchmark>/card.csv: a row per quantity and K, mean ± std over the seeds, the article's beside
 
 The first line of a block is its stamp: the CSV, a hash of its bytes (data), the commit and config hash it

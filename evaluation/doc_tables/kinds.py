@@ -209,6 +209,23 @@ def sim_map(table: pd.DataFrame) -> str:
                      "DEM ms per frame", "Graph-DEM ms per frame", "speed-up", "break-even sub-steps", "pays"], rows)
 
 
+def pays(table: pd.DataFrame) -> str:
+    """results/performance_pays.csv: a row per scene: does the surrogate pay against the closest DEM comparison its
+    test sims have, by how much (the median speed-up over them and its range), and why (the DEM's sub-steps per frame
+    against the break-even)."""
+    rows = []
+    for r in table.to_dict("records"):
+        why = (f"{float(r['dem_steps_per_frame']):.0f} DEM sub-steps per frame ({float(r['dem_steps_min']):.0f}-"
+               f"{float(r['dem_steps_max']):.0f}) against a break-even of {float(r['break_even_steps']):.0f}")
+        rows.append([str(r["scene"]), str(r["verdict"]),
+                     f"{float(r['speedup']):{NUMBER}}x [{float(r['speedup_min']):{NUMBER}}, "
+                     f"{float(r['speedup_max']):{NUMBER}}]", f"{r['dem_contender']} ({r['match']})",
+                     f"{float(r['surrogate_ms_per_frame']):{NUMBER}} / {float(r['dem_ms_per_frame']):{NUMBER}}",
+                     why, f"{int(r['sims'])}"])
+    return markdown(["scene", "surrogate", "speed-up (median [range] over test sims)", "against the DEM",
+                     "ms per frame, surrogate / DEM", "why", "test sims"], rows)
+
+
 def card(table: pd.DataFrame) -> str:
     """results/<benchmark>/card.csv: a row per quantity and protocol K, a column per method (measured, then the
     article's); a measured cell is the mean over the seeds ± their standard deviation (blow-ups: the total)."""
@@ -246,6 +263,8 @@ KINDS = {kind.name: kind for kind in (
     Kind("map", "{subject}/performance_map.csv", ("sim", "match", "dem_contender", "dem_steps_per_frame", "speedup",
                                                    "break_even_steps", "pays"),
          ("evaluation/performance_map.py", *PERFORMANCE), sim_map),
+    Kind("pays", "performance_pays.csv", ("scene", "verdict", "speedup", "dem_contender", "break_even_steps"),
+         ("evaluation/performance_map.py", "evaluation/commands/performance.py", *PERFORMANCE), pays),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,
          card),
 )}

@@ -75,3 +75,28 @@ def test_the_map_table_says_where_it_pays():
     assert lines[0].startswith("| DEM compared | DEM contender | sim |")
     assert "| as accurate | dt_50pct | a | 1100 (490) | 100 | 20 | 40 | 0.5x | 200 | no |" in lines
     assert "| as accurate | dt_50pct | b | 1100 (490) | 800 | 160 | 40 | 4x | 200 | yes |" in lines
+
+
+def test_the_pays_row_takes_the_closest_comparison_and_the_medians():
+    sims = performance_map.sim_map(table(), "graphdem", "reference")
+    row = performance_map.pays_row("shear", sims)
+    assert row["match"] == "as accurate" and row["dem_contender"] == "dt_50pct" and row["sims"] == 2
+    assert row["speedup"] == pytest.approx(2.25) and (row["speedup_min"], row["speedup_max"]) == (0.5, 4.0)
+    assert row["dem_steps_per_frame"] == 450 and row["break_even_steps"] == pytest.approx(200.0)
+    assert row["verdict"] == "pays on 1 of 2 sims"
+    reference_only = sims[sims["match"] == "reference"]
+    assert performance_map.pays_row("x", reference_only)["verdict"] == "pays"
+    assert performance_map.pays_row("x", sims[(sims["match"] == "as accurate") & (sims["sim"] == "a")])["verdict"] \
+        == "does not pay"
+
+
+def test_the_pays_table_has_a_row_per_scene_and_refuses_an_empty_map():
+    sims = performance_map.sim_map(table(), "graphdem", "reference")
+    pays = performance_map.pays_table({"slide": sims, "shear": sims})
+    assert list(pays["scene"]) == ["slide", "shear"]
+    with pytest.raises(ValueError, match="performance map of 'meteorite' has no rows"):
+        performance_map.pays_table({"meteorite": sims.iloc[:0]})
+    from evaluation.doc_tables import kinds
+    text = kinds.pays(pays)
+    assert "| slide | pays on 1 of 2 sims | 2.25x [0.5, 4] | dt_50pct (as accurate) | 40 / 90 |" in text
+    assert "450 DEM sub-steps per frame (100-800) against a break-even of 200" in text
