@@ -21,7 +21,7 @@ SUBCOMMANDS = ("config", "sweep", "prepare", "simulate", "convert", "stability-d
                "crosscheck", "transfer", "import-solidgn", "import", "export", "inspect", "dataset", "contacts",
                "train", "rollout", "evaluate", "combine", "seeds", "card", "property-sensitivity",
                "shear-stress-readout", "shear-stress-check", "stability-surrogate", "performance-dem",
-               "performance-surrogate", "performance-report", "publish", "tables")
+               "performance-surrogate", "performance-report", "performance-pays", "publish", "tables")
 
 
 def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:

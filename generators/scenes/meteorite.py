@@ -290,10 +290,29 @@ class Meteorite(Scene):
     def check(self, cfg: dict) -> None:
         for key in ("angle", "speed"):
             check_range(self.name, f"sweep.{key}", cfg["sweep"][key])
+        check_flight_room(cfg)
         if cfg["contact_frame"] >= cfg["model"]["history"]:
             raise ConfigError(f"config key 'meteorite.contact_frame' = {cfg['contact_frame']} must be below "
                               f"'meteorite.model.history' = {cfg['model']['history']}: the impact point x0 is taken "
                               "at first contact, which must lie in the history both truth and prediction share")
+
+
+def check_flight_room(cfg: dict) -> None:
+    """Refuse a domain that cannot hold the meteorite's start: above the nominal bed (``bed_depth``) by its radius
+    and the flight before contact (``contact_frame`` frames at the fastest swept speed) at the steepest swept angle,
+    and to the right of x = 0 by that flight at the flattest; the exact start is checked again per sim."""
+    width, height = cfg["domain"]
+    flight = cfg["contact_frame"] * cfg["frame_interval"] * max(cfg["sweep"]["speed"])
+    top = cfg["bed_depth"] + 2.0 * cfg["meteorite_radius"] + flight * math.sin(math.radians(max(cfg["sweep"]["angle"])))
+    left = 0.5 * width - cfg["meteorite_radius"] - flight * math.cos(math.radians(min(cfg["sweep"]["angle"])))
+    if top >= height or left <= 0:
+        raise ConfigError(f"config key 'meteorite.domain' = {cfg['domain']} cannot hold the meteorite's start: "
+                          f"'meteorite.bed_depth' = {cfg['bed_depth']} m, 'meteorite.meteorite_radius' = "
+                          f"{cfg['meteorite_radius']} m and {flight:.3g} m of flight before contact "
+                          f"('meteorite.contact_frame' = {cfg['contact_frame']}, 'meteorite.frame_interval' = "
+                          f"{cfg['frame_interval']}, 'meteorite.sweep.speed' = {cfg['sweep']['speed']}, "
+                          f"'meteorite.sweep.angle' = {cfg['sweep']['angle']}) need a domain at least "
+                          f"{width - 2 * left:.3g} m wide and {top:.3g} m high")
 
 
 SCENE = Meteorite()

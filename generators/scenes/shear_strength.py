@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RESIDUAL_SHARE = 0.2      # the residual: the mean over the last 20 % of the recorded frames
 MIN_STRESSES = 2          # normal stresses a Mohr-Coulomb fit needs
@@ -50,6 +53,7 @@ def mohr_coulomb(stress: np.ndarray, tau: np.ndarray) -> tuple[float, float]:
 def envelopes(table: pd.DataFrame) -> pd.DataFrame:
     """Fit rows (``sim`` = ``fit``): per modulus and over every sim (``young`` = all), the peak's and the residual's
     friction angle and cohesion, and the number of sims."""
+    import pandas as pd
     groups = [(f"{young:g}", part) for young, part in table.groupby("young")] + [("all", table)]
     rows = []
     for young, part in groups:
@@ -90,6 +94,8 @@ def plot(table: pd.DataFrame, fits: pd.DataFrame, path: Path) -> None:
 
 def physics(trajectories: list, out_csv: Path, out_png: Path) -> pd.DataFrame:
     """The strength table (a row per sim, then the fit rows) written to ``out_csv``, its plot to ``out_png``."""
+    import pandas as pd
+
     from generators.atomic import atomic_path
     table = pd.DataFrame([strength(t) for t in trajectories]).sort_values(["young", "normal_stress", "displacement"])
     table = table.reset_index(drop=True)

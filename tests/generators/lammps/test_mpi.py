@@ -128,7 +128,9 @@ def test_an_lmp_of_another_mpi_is_refused(runs, tmp_path, monkeypatch):
 def test_a_3d_shear_box_with_moving_walls_on_two_ranks(tmp_path):
     """The shear box in LAMMPS (3D, its walls kinematic particles moved by `fix move`, split between the
     ranks): the same particles, the box walls where the serial run puts them bit for bit, the soil and the
-    load platen (moved by its forces, summed over the ranks) to the last printed digit."""
+    load platen (moved by its forces, summed over the ranks in another order) within 1e-9 of the box's length: the
+    rounding of the sums grows with the granular chaos (2e-11 m, 2e-10 of the length, by the 5th frame of the
+    flanged box)."""
     from generators.scenes import shear
     cfg = config.load({"scale": "ci", "shear": {"radius": [0.008, 0.01], "wall_radius": 0.008,
                                                 "frames": 6, "model": {"history": 5}}})["shear"]
@@ -145,8 +147,7 @@ def test_a_3d_shear_box_with_moving_walls_on_two_ranks(tmp_path):
     walls = a["species"] == shear.BOX
     assert np.abs(a["position"][-1, walls] - a["position"][0, walls]).max() > 0        # the walls did move
     np.testing.assert_array_equal(a["position"][:, walls], b["position"][:, walls])
-    last_digit = 10.0 ** (np.floor(np.log10(np.maximum(np.abs(a["position"]), 1e-30))) - 9)
-    assert np.all(np.abs(a["position"] - b["position"]) <= last_digit * 1.0001)
+    assert np.abs(a["position"] - b["position"]).max() <= 1e-9 * max(cfg["box"])
 
 
 def test_the_serial_command_is_lmp_alone():

@@ -26,7 +26,8 @@ def tiny(tmp_path_factory):
 def test_count_constant_types_soil_box_and_platen(tiny):
     traj, packing = tiny["traj"], tiny["packing"]
     platen = len(shear.platen_grid(tiny["cfg"]))
-    assert traj.position.shape == (6, len(packing.x) + platen, 3)
+    flanges = len(shear.flanges(tiny["row"]).x)
+    assert flanges > 0 and traj.position.shape == (6, len(packing.x) + flanges + platen, 3)
     assert set(np.unique(traj.species)) == {shear.BOX, shear.SOIL, shear.PLATEN}
     assert (traj.species == shear.PLATEN).sum() == platen
     assert np.array_equal(traj.kinematic, np.isin(traj.species, (shear.BOX, shear.PLATEN)))
@@ -43,16 +44,17 @@ def test_the_written_file_holds_the_shear_observables(tiny):
 
 
 def test_box_particles_follow_their_prescribed_motion_exactly(tiny):
-    """Lower half: x0 + v t from frame 0 on (v chosen so the last frame is at exactly the displacement; held
-    through the loading before it); upper half: held."""
+    """Lower half (its trailing flange included): x0 + v t from frame 0 on (v chosen so the last frame is at exactly
+    the displacement; held through the loading before it); upper half (its leading flange included): held."""
     traj, packing = tiny["traj"], tiny["packing"]
-    n = len(packing.x)
+    both = packing.concat(shear.flanges(tiny["row"]))           # the sim's particles before the platen, in order
+    n = len(both.x)
     lower = np.zeros(len(traj.species), bool)
-    lower[:n] = packing.groups[shear.LOWER]
+    lower[:n] = both.groups[shear.LOWER]
     upper = np.zeros(len(traj.species), bool)
-    upper[:n] = (packing.species == shear.BOX) & ~packing.groups[shear.LOWER]
+    upper[:n] = (both.species == shear.BOX) & ~both.groups[shear.LOWER]
     t = traj.time - traj.time[0]
-    x0 = np.concatenate([packing.x, np.zeros((len(traj.species) - n, 3))])
+    x0 = np.concatenate([both.x, np.zeros((len(traj.species) - n, 3))])
     expected = x0[lower][None] + np.outer(t, [traj.parameters["shear_speed"], 0.0, 0.0])[:, None, :]
     np.testing.assert_allclose(traj.position[:, lower], expected, rtol=0, atol=1e-7)      # float32 storage
     np.testing.assert_allclose(traj.position[:, upper], np.repeat(x0[upper][None], 6, axis=0), rtol=0, atol=1e-7)
