@@ -72,3 +72,15 @@ def test_a_non_finite_frame_gives_nan_not_a_number():
     m = metrics(pos)
     assert all(np.isnan(v[2]) for v in m.values())
     assert m["Sp Num(R)"][0] == 1
+
+
+def test_a_domain_that_cannot_hold_the_meteorites_start_is_refused_when_read():
+    """The default's start lies at most 110 m high (60 m of bed, a 20 m meteorite's diameter, 10.5 m of flight at
+    90 degrees) and 29 m left of the hit point: a 100 m high or 50 m wide domain cannot hold it."""
+    from generators import config
+    from generators.errors import ConfigError
+    for domain in ([500.0, 100.0], [50.0, 300.0], [500.0, 0.0003]):
+        with pytest.raises(ConfigError, match=r"'meteorite.domain' = .*'meteorite.bed_depth' = 60.0 m.*at least "
+                                              r"58.2 m wide and 110 m high"):
+            config.load({"scale": "default", "meteorite": {"domain": domain}})
+    assert config.load({"scale": "default", "meteorite": {"domain": [500.0, 120.0]}})["meteorite"]["domain"][1] == 120
