@@ -51,9 +51,11 @@ def mohr_coulomb(stress: np.ndarray, tau: np.ndarray) -> tuple[float, float]:
 
 
 def envelopes(table: pd.DataFrame) -> pd.DataFrame:
-    """Fit rows (``sim`` = ``fit``): per modulus and over every sim (``young`` = all), the peak's and the residual's
-    friction angle and cohesion, and the number of sims."""
+    """Fit rows (``sim`` = ``fit``): per modulus and over all moduli (``young`` = all), the peak's and the residual's
+    friction angle and cohesion, and the number of sims. Only the sims sheared to the sweep's largest displacement
+    are fitted: a shorter one may end before its peak (its last frames are no residual)."""
     import pandas as pd
+    table = table[table["displacement"] == table["displacement"].max()]
     groups = [(f"{young:g}", part) for young, part in table.groupby("young")] + [("all", table)]
     rows = []
     for young, part in groups:

@@ -44,11 +44,14 @@ def test_envelopes_per_modulus_and_over_all(tmp_path):
     peaks higher (tan 40 deg)."""
     sims = [_sim(young, stress, math.tan(math.radians(40.0 if young > 5e7 else 35.0)), math.tan(math.radians(25.0)))
             for young in (1e7, 1e8) for stress in (5e3, 1.58e4, 5e4)]
+    short = _sim(1e7, 5e3, 2.0, 2.0)                 # sheared less far: not fitted
+    short.parameters["displacement"] = 0.003
+    sims.append(short)
     out = shear_strength.physics(sims, tmp_path / "physics.csv", tmp_path / "physics.png")
     fits = out[out["sim"] == "fit"].set_index("young")
     assert fits.at["1e+07", "phi_peak_deg"] == pytest.approx(35.0) and fits.at["1e+08", "phi_peak_deg"] == \
         pytest.approx(40.0)
     assert fits.at["all", "phi_residual_deg"] == pytest.approx(25.0)
     assert abs(fits.at["1e+07", "cohesion_peak"]) < 1e-6 and fits.at["all", "sims"] == 6
-    assert len(pd.read_csv(tmp_path / "physics.csv")) == 6 + 3
+    assert len(pd.read_csv(tmp_path / "physics.csv")) == 7 + 3
     assert (tmp_path / "physics.png").stat().st_size > 10_000
