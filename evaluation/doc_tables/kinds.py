@@ -221,9 +221,10 @@ def pays(table: pd.DataFrame) -> str:
                      f"{float(r['speedup']):{NUMBER}}x [{float(r['speedup_min']):{NUMBER}}, "
                      f"{float(r['speedup_max']):{NUMBER}}]", f"{r['dem_contender']} ({r['match']})",
                      f"{float(r['surrogate_ms_per_frame']):{NUMBER}} / {float(r['dem_ms_per_frame']):{NUMBER}}",
-                     why, f"{int(r['sims'])}"])
+                     why, (f"{float(r['speedup_vs_fastest']):{NUMBER}}x ({r['fastest_contender']})"
+                           if finite(r.get("speedup_vs_fastest")) else ""), f"{int(r['sims'])}"])
     return markdown(["scene", "surrogate", "speed-up (median [range] over test sims)", "against the DEM",
-                     "ms per frame, surrogate / DEM", "why", "test sims"], rows)
+                     "ms per frame, surrogate / DEM", "why", "against the fastest DEM, any error", "test sims"], rows)
 
 
 def card(table: pd.DataFrame) -> str:

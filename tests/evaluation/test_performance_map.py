@@ -24,6 +24,7 @@ def table() -> pd.DataFrame:
     return pd.DataFrame([
         {"contender": "reference", "kind": "dem", "per_sim": json.dumps(reference)},
         {"contender": "dt_50pct", "kind": "dem", "per_sim": json.dumps(fast)},
+        {"contender": "soft", "kind": "dem", "per_sim": json.dumps({"a": _dem(0.01, 20), "b": _dem(0.02, 40)})},
         {"contender": "graphdem", "kind": "surrogate", "matched_dem": "dt_50pct", "matched_dem_by_mse": "dt_50pct",
          "per_sim": json.dumps(surrogate)},
     ])
@@ -42,7 +43,20 @@ def test_speedup_and_break_even_per_sim():
     reference = sims[sims["match"] == "reference"].set_index("sim")
     assert list(reference["speedup"]) == pytest.approx([12.5, 100.0]) and reference["pays"].all()
     assert list(matched["dem_ms_per_frame"]) == pytest.approx([20.0, 160.0])
-    assert set(sims["match"]) == {"as accurate", "as accurate by MSE", "reference"}
+    assert set(sims["match"]) == {"as accurate", "as accurate by MSE", "reference"}     # nothing timed: no fastest
+
+
+def test_the_fastest_dem_whatever_its_error_stands_beside_the_matches():
+    t = table()
+    t["seconds_per_rollout"] = [10.0, 1.8, 0.3, 0.8]           # soft: the fastest DEM, not as accurate
+    t["stable"] = True
+    sims = performance_map.sim_map(t, "graphdem", "reference")
+    fastest = sims[sims["match"] == performance_map.FASTEST].set_index("sim")
+    assert (fastest["dem_contender"] == "soft").all()
+    assert list(fastest["speedup"]) == pytest.approx([0.25, 0.5])
+    row = performance_map.pays_row("shear", sims)
+    assert row["match"] == "as accurate" and row["fastest_contender"] == "soft"
+    assert row["speedup_vs_fastest"] == pytest.approx(0.375)
 
 
 def test_a_missing_match_has_no_rows():
