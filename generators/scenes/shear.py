@@ -79,6 +79,11 @@ def slowest_speed(cfg: dict) -> float:
     return min(target_speed(cfg, stress) for stress in normal_stress_values(cfg))
 
 
+def frame_speed(row: dict, every: int, dt: float) -> float:
+    """The lower half's speed (m/s) that gives the sim's displacement over its frames of ``every`` steps of ``dt``."""
+    return row["displacement"] / (every * dt * (row["frames"] - 1))
+
+
 def frame_steps(row: dict, dt: float) -> int:
     """DEM steps per recorded frame: the frame interval displacement / (speed (frames - 1)) in whole multiples of
     FORCE_SAMPLES steps, the nearest, or one multiple more where the nearest would shear faster than
@@ -86,8 +91,7 @@ def frame_steps(row: dict, dt: float) -> int:
     speed = target_speed(row, row["normal_stress"])
     interval = row["displacement"] / (speed * (row["frames"] - 1))
     every = FORCE_SAMPLES * max(1, int(round(interval / (FORCE_SAMPLES * dt))))
-    actual = row["displacement"] / (every * dt * (row["frames"] - 1))
-    if inertial_number(row, actual, row["normal_stress"]) > row["max_inertial_number"]:
+    if inertial_number(row, frame_speed(row, every, dt), row["normal_stress"]) > row["max_inertial_number"]:
         every += FORCE_SAMPLES
     return every
 
@@ -411,7 +415,7 @@ class Shear(Scene):
         dt = step[0]
         every = frame_steps(row, dt)
         start = every * int(math.ceil(row["load_time"] / (every * dt)))     # recording starts on a frame step
-        speed = row["displacement"] / (every * dt * (row["frames"] - 1))
+        speed = frame_speed(row, every, dt)
         box_lower, box_upper = domain(row, row["domain_displacement"])
         platen = dem.Platen(PLATEN_GROUP, float(row["platen_mass"]), platen_force(row), axis=2,
                             ramp=max(1, start // 2))

@@ -30,13 +30,14 @@ def strength(traj) -> dict:
     tau = np.asarray(o["shear_stress"], float)
     n = max(1, int(math.ceil(RESIDUAL_SHARE * len(tau))))
     peak = int(np.nanargmax(tau))
+    residual = float(np.mean(tau[-n:]))
     stress = float(p["normal_stress"])
     dilation = np.asarray(o["normal_displacement"], float)
     return {"sim": str(p.get("id")), "young": float(p["young"]), "normal_stress": stress,
             "displacement": float(p["displacement"]), "inertial_number": float(p.get("inertial_number", np.nan)),
             "peak_shear_stress": float(tau[peak]), "peak_displacement": float(o["shear_displacement"][peak]),
-            "residual_shear_stress": float(np.mean(tau[-n:])), "peak_ratio": float(tau[peak]) / stress,
-            "residual_ratio": float(np.mean(tau[-n:])) / stress, "dilation_at_peak": float(dilation[peak]),
+            "residual_shear_stress": residual, "peak_ratio": float(tau[peak]) / stress,
+            "residual_ratio": residual / stress, "dilation_at_peak": float(dilation[peak]),
             "dilation_at_end": float(dilation[-1])}
 
 
@@ -101,8 +102,9 @@ def physics(trajectories: list, out_csv: Path, out_png: Path) -> pd.DataFrame:
     from generators.atomic import atomic_path
     table = pd.DataFrame([strength(t) for t in trajectories]).sort_values(["young", "normal_stress", "displacement"])
     table = table.reset_index(drop=True)
-    out = pd.concat([table, envelopes(table)], ignore_index=True)
+    fits = envelopes(table)
+    out = pd.concat([table, fits], ignore_index=True)
     with atomic_path(Path(out_csv)) as tmp:
         out.to_csv(tmp, index=False)
-    plot(table, envelopes(table), out_png)
+    plot(table, fits, out_png)
     return out
