@@ -257,7 +257,8 @@ def cmd_physics(args) -> None:
         have = [n for n, s in scenes.registry().items() if s.has_physics]
         raise ValueError(f"the {scene.name} scene has no physics check; scenes with one: {', '.join(have) or 'none'}")
     trajectories = [h5md.read(p) for p in args.data]
-    table = scene.physics(trajectories, Path(args.out), Path(args.plot))
+    cfg = args.config_json if args.config_json is not None else gconfig.defaults()[scene.name]
+    table = scene.physics(trajectories, Path(args.out), Path(args.plot), cfg)
     print(table.to_string(index=False))
 
 
@@ -336,6 +337,8 @@ def _add_physics(sub) -> None:
     p.add_argument("--data", type=input_path, nargs="+", required=True, help="the scene's H5MD sims")
     p.add_argument("--out", type=output_file, required=True, help="CSV to write")
     p.add_argument("--plot", type=output_file, required=True, help="PNG to write")
+    p.add_argument("--config-json", type=json_arg, default=None,
+                   help="the scene's resolved config section (the workflow passes it); absent: the scene's defaults")
 
 
 def _engine_flags() -> str:

@@ -402,15 +402,18 @@ def _check_contenders(name: str, cfg: dict) -> None:
         return
     for key, kind in (("main", "surrogate"), ("reference", "dem")):
         if perf[key] not in perf[kind]:
-            raise ConfigError(f"config key '{name}.performance.{key}' = {perf[key]!r} is not a {kind} contender; "
-                              f"allowed: {sorted(perf[kind])} (the keys of '{name}.performance.{kind}')")
+            raise ConfigError(f"config key '{name}.performance.{key}' = {perf[key]!r} is not a {kind} contender "
+                              f"('{name}.performance.{kind}.{perf[key]}' is not set); allowed: {sorted(perf[kind])} "
+                              f"(the keys of '{name}.performance.{kind}')")
     for contender, changes in perf["dem"].items():
         if changes.get("engine", cfg["engine"]) not in scenes.get(name).engines:
             raise ConfigError(f"config key '{name}.performance.dem.{contender}.engine' = {changes['engine']!r}: the "
                               f"{name} scene runs in {', '.join(scenes.get(name).engines)}")
         if "dt_safety" in changes and "dt_factor" in changes:
-            raise ConfigError(f"config key '{name}.performance.dem.{contender}': give dt_safety (a fraction of the "
-                              "stable limit) or dt_factor (a multiple of the data's step), not both")
+            raise ConfigError(f"config key '{name}.performance.dem.{contender}': give "
+                              f"'{name}.performance.dem.{contender}.dt_safety' (a fraction of the stable limit) or "
+                              f"'{name}.performance.dem.{contender}.dt_factor' (a multiple of the data's step), "
+                              "not both")
 
 
 _FLOAT = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")

@@ -75,6 +75,8 @@ class Scene(ABC):
     species: ClassVar[dict[int, str]]
     kinematic_species: ClassVar[tuple[int, ...]]
     metrics: ClassVar[type]
+    # Keys of the section that only the config check reads (e.g. how long a record must be): never in a row.
+    check_keys: ClassVar[tuple[str, ...]] = ()
 
     # ---- sweep ---------------------------------------------------------------------------------
 
@@ -111,8 +113,9 @@ class Scene(ABC):
         return None
 
     def row_params(self, cfg: dict) -> dict:
-        """The physical parameters every sweep row carries: the section less NOT_IN_ROWS."""
-        return {k: v for k, v in cfg.items() if k not in NOT_IN_ROWS}
+        """The physical parameters every sweep row carries: the section less NOT_IN_ROWS and the scene's
+        ``check_keys``."""
+        return {k: v for k, v in cfg.items() if k not in NOT_IN_ROWS and k not in self.check_keys}
 
     # ---- descriptions --------------------------------------------------------------------------
 
@@ -195,10 +198,10 @@ class Scene(ABC):
         """Semantic checks of the resolved section (the schema has checked types and ranges); default: none."""
         return None
 
-    def physics(self, trajectories: list, out_csv, out_png):
+    def physics(self, trajectories: list, out_csv, out_png, cfg: dict):
         """The scene's check of its DEM data against published physics (the physics stage): a table
-        written to ``out_csv`` and a plot to ``out_png``. Scenes without one refuse by name
-        (:func:`has_physics` tells which have one)."""
+        written to ``out_csv`` and a plot to ``out_png``; ``cfg`` is the scene's resolved config section.
+        Scenes without one refuse by name (:func:`has_physics` tells which have one)."""
         raise ValueError(f"the {self.name} scene has no physics check")
 
     @property

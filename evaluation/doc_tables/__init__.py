@@ -76,12 +76,13 @@ def kind_of(block: Block, kinds: Mapping[str, Kind]) -> tuple[Kind, str]:
     return kinds[name], subject
 
 
-def code_hash(kind: Kind, code_root: Path = CODE_ROOT) -> str:
+def code_hash(kind: Kind, code_root: Path = CODE_ROOT, subject: str = "") -> str:
     """A short SHA-256 of the kind's producing files (their paths under ``code_root`` and their bytes, in path
-    order). A pattern that matches no file is refused: the registry names a file that is gone."""
+    order; ``{subject}`` in a pattern is the table's subject, e.g. a scene's own module). A pattern that matches
+    no file is refused: the registry names a file that is gone."""
     digest = hashlib.sha256()
     files: set[Path] = set()
-    for pattern in kind.sources:
+    for pattern in (p.format(subject=subject) for p in kind.sources):
         matched = [p for p in Path(code_root).glob(pattern) if p.is_file()]
         if not matched:
             raise FileNotFoundError(f"the {kind.name} table's producing files {pattern!r} match nothing under "
@@ -138,7 +139,7 @@ def regenerate(block: Block, root: Path, results: Path, kinds: Mapping[str, Kind
         raise ValueError(f"{csv}: lacks the columns {missing} that the {kind.name} table {block.name} "
                          f"({block.where}) needs")
     previous, old_table = blocks.split_body(block.body)
-    current = code_hash(kind, code_root)
+    current = code_hash(kind, code_root, subject)
     stamp = provenance(table, csv, Path(results).parent, current, previous)
     text = kind.render(table)
     same = previous is not None and previous.key() == stamp.key() and old_table == text.strip()
@@ -178,15 +179,16 @@ def check(root: Path, files: list[Path] | None = None, kinds: Mapping[str, Kind]
     for _, found in read_blocks(documents(root, files)).values():
         for block in found:
             kind, subject = kind_of(block, kinds)
-            if kind.name not in hashes:
-                hashes[kind.name] = code_hash(kind, code_root)
+            if (kind.name, subject) not in hashes:
+                hashes[kind.name, subject] = code_hash(kind, code_root, subject)
+            now = hashes[kind.name, subject]
             stamp, _ = blocks.split_body(block.body)
             if stamp is None:
                 never.append(f"{block.where}: {block.name}: never generated (no stamp); graphdem tables --write "
                              f"fills it from {RESULTS}/{kind.csv.format(subject=subject)}")
-            elif stamp.code != hashes[kind.name]:
+            elif stamp.code != now:
                 stale.append(f"{block.where}: {block.name}: stale: the code that produces {stamp.source} changed "
-                             f"(stamp code {stamp.code}, now {hashes[kind.name]}); rerun its stage, then "
+                             f"(stamp code {stamp.code}, now {now}); rerun its stage, then "
                              "graphdem tables --write")
     return stale, never
 

@@ -3,9 +3,10 @@
 A table named ``<subject>-<kind>`` (``slide-metrics``, ``slide_samer-card``) is kind ``<kind>`` of
 ``results/<subject>/``: every scene and public benchmark gets one without code of its own. A kind also names
 its ``sources``, the files whose code computes its CSV's numbers (glob patterns relative to the folder that
-holds the ``generators``, ``surrogate`` and ``evaluation`` packages); a stamp's code hash covers them, so
-``graphdem tables --check`` flags the table after any of them changed. The code that only lays the table out
-(this module) is not among them: a change of layout is rewritten by ``--write`` from the same CSV.
+holds the ``generators``, ``surrogate`` and ``evaluation`` packages; ``{subject}`` is the table's subject); a
+stamp's code hash covers them, so ``graphdem tables --check`` flags the table after any of them changed. The code
+that only lays the table out (this module) is not among them: a change of layout is rewritten by ``--write`` from
+the same CSV.
 
 Numbers are rounded as :data:`NUMBER` (3 significant digits), :data:`PERCENT` (Acc: one decimal) and
 :data:`SCORE` (skill and errors in ensemble spreads: two decimals), a spread over seeds as :data:`SPREAD` (2
@@ -256,6 +257,29 @@ def _card_cell(row: dict) -> str:
     return text
 
 
+def runout(table: pd.DataFrame) -> str:
+    """results/<scene>/physics.csv of a runout-law check: a row per fit (all sims, then per friction): the sims at
+    rest that it fits, the linear prefactor, the power law, the final height's exponent and the longest rest time
+    of its sims (in sqrt(H0 / g) of each settled column)."""
+    sims, fits = table[table["sim"] != "fit"], table[table["sim"] == "fit"]
+    rows = []
+    for fit in fits.to_dict("records"):
+        group = str(fit["friction"])
+        mine = sims if group == "all" else sims[[f"{float(f):g}" == group for f in sims["friction"]]]
+        at_rest = mine["at_rest"].astype(str).str.lower() == "true"
+        power = (f"{float(fit['power_prefactor']):{NUMBER}} a^{float(fit['power_exponent']):.2f}"
+                 if finite(fit["power_prefactor"]) else UNDEFINED)
+        lam = f"{float(fit['linear_prefactor']):{NUMBER}} a" if finite(fit["linear_prefactor"]) else UNDEFINED
+        beta = f"{float(fit['height_exponent']):.2f}" if finite(fit["height_exponent"]) else UNDEFINED
+        longest = mine.loc[at_rest, "rest_time_scaled"].astype(float)
+        rows.append([group, f"{int(at_rest.sum())} of {len(mine)}", f"{lam} ({int(fit['n_small'])} sims)",
+                     f"{power} ({int(fit['n_large'])} sims)", beta,
+                     f"{longest.max():.1f}" if len(longest) else UNDEFINED])
+    return markdown(["friction", "sims at rest (fitted)", "small a: lambda a (a < 1.8)",
+                     "large a: c a^alpha (a > 2.8)", "H_inf/L0 exponent (a > 1.15)",
+                     "longest rest time (sqrt(H0/g))"], rows)
+
+
 KINDS = {kind.name: kind for kind in (
     Kind("metrics", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, metrics),
     Kind("summary", "{subject}/metrics.csv", ("method", "metric", "sim"), EVALUATION, summary),
@@ -268,4 +292,7 @@ KINDS = {kind.name: kind for kind in (
          ("evaluation/performance_map.py", "evaluation/commands/performance.py", *PERFORMANCE), pays),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,
          card),
+    Kind("runout", "{subject}/physics.csv", ("sim", "friction", "linear_prefactor", "power_prefactor",
+                                             "power_exponent", "height_exponent", "at_rest", "rest_time_scaled"),
+         ("generators/scenes/{subject}.py", "generators/contact.py", "generators/engine.py"), runout),
 )}

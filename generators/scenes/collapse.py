@@ -31,7 +31,6 @@ if TYPE_CHECKING:  # pandas is imported where a table is built, not when the wor
 
 FLOOR, GRAIN = 0, 1
 FILL = 1.14               # the loose lattice fills this many nominal heights (it compacts by about 12 %)
-REST_TIME = 3.0           # the collapse stops after about 3 sqrt(H0 / g) (Lube et al. 2005)
 SPREAD = 5.0              # the domain (closed by an end wall) holds a runout of SPREAD a^(2/3) L0
 # Published laws of (L_inf - L0) / L0, quasi-2D channels: (source, linear prefactor and range,
 # power-law prefactor, exponent and range). Lube et al. 2005 (their eqs. 3-4); Lajeunesse et al. 2005 as
@@ -158,6 +157,7 @@ class Collapse(Scene):
     species = {FLOOR: "floor", GRAIN: "grain"}
     kinematic_species = (FLOOR,)
     metrics = CollapseMetrics
+    check_keys = ("rest_time",)
 
     def packings(self, cfg: dict) -> list[dict]:
         """One settled column per aspect ratio, shared by the frictions of the sweep."""
@@ -219,34 +219,24 @@ class Collapse(Scene):
     def check(self, cfg: dict) -> None:
         check_range(self.name, "sweep.aspect", cfg["sweep"]["aspect"])
         a_max = max(cfg["sweep"]["aspect"])
-        needed = REST_TIME * math.sqrt(a_max * cfg["column_width"] / cfg["gravity"])
+        needed = cfg["rest_time"] * math.sqrt(a_max * cfg["column_width"] / cfg["gravity"])
         window = cfg["frame_interval"] * (cfg["frames"] - 1)
         if window < needed:
             raise ConfigError(f"config keys 'collapse.frames' = {cfg['frames']} and 'collapse.frame_interval' = "
                               f"{cfg['frame_interval']} record {window:.3g} s; the tallest column (a = {a_max:g} of "
                               f"'collapse.sweep.aspect', 'collapse.column_width' = {cfg['column_width']:g}, "
-                              f"'collapse.gravity' = {cfg['gravity']:g}) comes to rest after about {REST_TIME:g} "
-                              f"sqrt(H0/g) = {needed:.3g} s: record longer")
+                              f"'collapse.gravity' = {cfg['gravity']:g}) comes to rest after about "
+                              f"'collapse.rest_time' = {cfg['rest_time']:g} sqrt(H0/g) = {needed:.3g} s: record longer")
 
     # ---- the runout law ----------------------------------------------------------------------------
 
-    def physics(self, trajectories: list, out_csv: Path, out_png: Path) -> pd.DataFrame:
-        """Final runout and height of every sim against its settled aspect ratio, the fits of both regimes
-        beside the published laws (rows with ``sim = fit``), and a plot of both."""
+    def physics(self, trajectories: list, out_csv: Path, out_png: Path, cfg: dict) -> pd.DataFrame:
+        """Final runout and height of every sim against its settled aspect ratio, whether it is at rest at its last
+        frame (:func:`rest`, at ``cfg['settle_speed']``, the speed that also defines a settled column), the fits of
+        both regimes over the sims at rest beside the published laws (rows with ``sim = fit``), and a plot."""
         import pandas as pd
 
-        rows = []
-        for traj in trajectories:
-            m = CollapseMetrics.for_trajectory(traj)
-            values = m(np.asarray(traj.position, np.float64)[[0, -1]])
-            width = m.column_width
-            grains = ~m.kinematic
-            last = np.asarray(traj.position, np.float64)[-2:, grains]
-            speed = float(np.linalg.norm(last[1] - last[0], axis=-1).max() / (traj.time[-1] - traj.time[-2]))
-            rows.append({"sim": str(traj.parameters.get("id")), "friction": float(traj.parameters["friction"]),
-                         "aspect": values["Height"][0] / width,
-                         "runout": values["Runout"][1] / width, "height": values["Height"][1] / width,
-                         "final_max_speed": speed})
+        rows = [deposit(traj, float(cfg["settle_speed"])) for traj in trajectories]
         table = pd.DataFrame(rows).sort_values(["friction", "aspect"]).reset_index(drop=True)
         fits = fit_runout(table)
         out = pd.concat([table, fits], ignore_index=True)
@@ -257,15 +247,46 @@ class Collapse(Scene):
         return out
 
 
+def rest(time: np.ndarray, position: np.ndarray, speed: float) -> tuple[np.ndarray, float]:
+    """The grains' RMS speed over each frame interval ([T - 1], from the displacement between frames) and the rest
+    time: the start of the last interval from which the RMS speed stays below ``speed`` to the last frame (s;
+    NaN where the last interval is not below it: the column is still moving when the record ends)."""
+    step = np.diff(np.asarray(position, np.float64), axis=0)
+    rms = np.sqrt((step ** 2).sum(axis=-1).mean(axis=-1)) / np.diff(np.asarray(time, np.float64))
+    moving = np.flatnonzero(rms >= speed)
+    if len(moving) and moving[-1] == len(rms) - 1:
+        return rms, float("nan")
+    return rms, float(time[moving[-1] + 1] if len(moving) else time[0]) - float(time[0])
+
+
+def deposit(traj, rest_speed: float) -> dict:
+    """One sim's row of the runout table: settled aspect ratio (frame 0), final runout and height over L0, the
+    largest grain speed and the RMS speed over the last frame interval, at rest or not, and the rest time (s
+    and in units of sqrt(H0 / g) of the settled column)."""
+    m = CollapseMetrics.for_trajectory(traj)
+    grains = np.asarray(traj.position, np.float64)[:, ~m.kinematic]
+    values = m(np.asarray(traj.position, np.float64)[[0, -1]])
+    width, height0 = m.column_width, float(values["Height"][0])
+    rms, rest_s = rest(np.asarray(traj.time), grains, rest_speed)
+    last = np.linalg.norm(grains[-1] - grains[-2], axis=-1).max() / float(traj.time[-1] - traj.time[-2])
+    (gravity,) = trajectory_parameters(traj, ("gravity",), "collapse")
+    return {"sim": str(traj.parameters.get("id")), "friction": float(traj.parameters["friction"]),
+            "aspect": height0 / width, "runout": values["Runout"][1] / width, "height": values["Height"][1] / width,
+            "final_max_speed": float(last), "final_rms_speed": float(rms[-1]), "at_rest": bool(np.isfinite(rest_s)),
+            "rest_time": rest_s, "rest_time_scaled": rest_s / math.sqrt(height0 / gravity)}
+
+
 def fit_runout(table: pd.DataFrame) -> pd.DataFrame:
     """Per friction (and all together): the linear prefactor lambda of (L - L0)/L0 = lambda a over the
     sims below Lube's a = 1.8, and c, alpha of c a^alpha (log-log least squares) over those above a = 2.8;
-    the final height's exponent above a = 1.15. NaN where a regime has too few sims."""
+    the final height's exponent above a = 1.15. Only sims at rest (column ``at_rest`` where the table has
+    one) are fitted; ``n_moving`` counts those left out. NaN where a regime has too few sims."""
     import pandas as pd
 
     out = []
     groups = [("all", table)] + [(f"{mu:g}", g) for mu, g in table.groupby("friction")]
-    for name, g in groups:
+    for name, everything in groups:
+        g = everything[everything["at_rest"].astype(bool)] if "at_rest" in everything else everything
         small, large, tall = g[g["aspect"] < 1.8], g[g["aspect"] > 2.8], g[g["aspect"] > 1.15]
         lam = float((small["aspect"] * small["runout"]).sum() / (small["aspect"] ** 2).sum()) if len(small) else np.nan
         c = alpha = beta = np.nan
@@ -276,7 +297,7 @@ def fit_runout(table: pd.DataFrame) -> pd.DataFrame:
             beta = float(np.polyfit(np.log(tall["aspect"]), np.log(tall["height"]), 1)[0])
         out.append({"sim": "fit", "friction": name, "linear_prefactor": lam, "power_prefactor": c,
                     "power_exponent": float(alpha), "height_exponent": beta,
-                    "n_small": len(small), "n_large": len(large)})
+                    "n_small": len(small), "n_large": len(large), "n_moving": len(everything) - len(g)})
     return pd.DataFrame(out)
 
 

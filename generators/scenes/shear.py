@@ -425,7 +425,7 @@ class Shear(Scene):
                           force_groups=(UPPER, PLATEN_GROUP), force_samples=FORCE_SAMPLES, box_lower=box_lower,
                           box_upper=box_upper)
 
-    def physics(self, trajectories: list, out_csv, out_png):
+    def physics(self, trajectories: list, out_csv, out_png, cfg: dict):
         """The strength of the DEM data: peak and residual shear stress, dilation and inertial number per sim, and
         the Mohr-Coulomb envelopes over the swept normal stresses (generators/scenes/shear_strength.py)."""
         from generators.scenes import shear_strength

@@ -8,10 +8,12 @@ rule physics:
         plot=report("results/{scene}/plots/physics.png", caption="../report/physics.rst",
                     category=report_category, subcategory="physics",
                     labels={"figure": "DEM against published physics", "scene": "{scene}"}),
+    params:
+        cfg=scene_config_json,
     log:
         "results/{scene}/logs/physics.log",
     benchmark:
         "results/{scene}/timings/physics.tsv"
     shell:
         "graphdem physics --scene {wildcards.scene} --data {input.sims:q} --out {output.table:q} --plot {output.plot:q} "
-        "> {log} 2>&1"
+        "--config-json {params.cfg:q} > {log} 2>&1"

@@ -41,3 +41,28 @@ def test_the_speed_table_scales_to_milliseconds_and_names_blow_ups():
     # 0.25 s = 250 ms; 0.0125 s = 12.5 ms and 0.25 / 0.0125 = 20x; the settling row is left out
     assert rows == ["| dem | dem | 250 | 0 | 1x |", "| gd (main) | surrogate | 12.5 | 0.00015 | 20x |",
                     f"| coarse | dem | {kinds.BLOWN_UP} | {kinds.BLOWN_UP} | {kinds.BLOWN_UP} |"]
+
+
+def test_the_runout_table_gives_each_fit_over_the_sims_at_rest_and_their_longest_rest():
+    sims = [{"sim": f"s{k}", "friction": mu, "at_rest": rest, "rest_time_scaled": t}
+            for k, (mu, rest, t) in enumerate([(0.3, True, 5.04), (0.3, False, math.nan), (0.6, True, 7.25)])]
+    fit = {"sim": "fit", "linear_prefactor": 1.064, "power_prefactor": 1.2756, "power_exponent": 1.0324,
+           "height_exponent": 0.2356, "n_small": 2, "n_large": 1, "at_rest": math.nan, "rest_time_scaled": math.nan}
+    table = pd.DataFrame(sims + [{**fit, "friction": "all"}, {**fit, "friction": "0.3", "power_prefactor": math.nan},
+                                 {**fit, "friction": "0.6"}])
+    rows = kinds.runout(table).splitlines()
+    assert rows[0].startswith("| friction | sims at rest (fitted) | small a: lambda a (a < 1.8) |")
+    assert rows[2:] == ["| all | 2 of 3 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |",
+                        f"| 0.3 | 1 of 2 | 1.06 a (2 sims) | {kinds.UNDEFINED} (1 sims) | 0.24 | 5.0 |",
+                        "| 0.6 | 1 of 1 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |"]
+
+
+def test_a_sources_pattern_may_name_the_tables_subject(tmp_path):
+    from evaluation import doc_tables
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.py").write_text(name)
+    kind = kinds.Kind("k", "{subject}/x.csv", (), ("{subject}.py",), str)
+    assert doc_tables.code_hash(kind, tmp_path, "a") != doc_tables.code_hash(kind, tmp_path, "b")
+    (tmp_path / "b.py").write_text("changed")         # b's change leaves a's hash as it was
+    assert doc_tables.code_hash(kind, tmp_path, "a") == doc_tables.code_hash(kinds.Kind(
+        "k", "{subject}/x.csv", (), ("a.py",), str), tmp_path)

@@ -104,22 +104,45 @@ def test_the_runout_fit_recovers_the_laws_the_table_follows():
     assert np.isnan(fits.loc["0.6", "power_prefactor"]) and np.isnan(fits.loc["0.6", "height_exponent"])
 
 
-def test_physics_measures_the_aspect_on_the_settled_column_and_the_final_runout(tmp_path):
+def test_physics_measures_the_aspect_on_the_settled_column_the_final_runout_and_whether_it_rests(tmp_path):
     trajectories = []
     for k, shift in enumerate((0.0, 0.2)):
         last = DEPOSIT + [shift, 0.0]          # the second sim still moves: 0.2 m in the last 0.1 s
-        trajectories.append(_trajectory([COLUMN, DEPOSIT, last], {"column_width": L0, "floor_radius": FLOOR_R,
-                                                                  "friction": 0.4, "id": f"c{k}"}))
-    table = collapse.SCENE.physics(trajectories, tmp_path / "runout.csv", tmp_path / "runout.png")
+        trajectories.append(_trajectory([COLUMN, DEPOSIT, DEPOSIT, last], {
+            "column_width": L0, "floor_radius": FLOOR_R, "friction": 0.4, "id": f"c{k}", "gravity": 10.0}))
+    table = collapse.SCENE.physics(trajectories, tmp_path / "runout.csv", tmp_path / "runout.png",
+                                   {"settle_speed": 0.05})
     sims = table[table["sim"] != "fit"].set_index("sim")
     # aspect = frame 0 height / L0 = 2 / 2; runout and height of the last frame / L0; speed = 0.2 m / 0.1 s
     np.testing.assert_allclose(sims["aspect"], [1.0, 1.0])
-    np.testing.assert_allclose(sims["runout"], [1.0 / L0, 1.0 / L0])
+    np.testing.assert_allclose(sims["runout"], [1.0 / L0, 1.0 / L0])   # the shift keeps the bins
     np.testing.assert_allclose(sims["height"], [0.5, 0.5])
     np.testing.assert_allclose(sims["final_max_speed"], [0.0, 2.0])
-    assert table[table["sim"] == "fit"]["linear_prefactor"].iloc[0] == pytest.approx(0.5)
+    np.testing.assert_allclose(sims["final_rms_speed"], [0.0, 2.0])    # every grain moved 0.2 m in 0.1 s
+    # c0 rests from t = 0.1 (the interval 0.1-0.2 is still); in units of sqrt(H0 / g) = sqrt(2 / 10)
+    assert list(sims["at_rest"]) == [True, False]
+    assert sims.loc["c0", "rest_time"] == pytest.approx(0.1)
+    assert sims.loc["c0", "rest_time_scaled"] == pytest.approx(0.1 / math.sqrt(0.2))
+    assert np.isnan(sims.loc["c1", "rest_time"])
+    # only the sim at rest is fitted (runout 0.5 at a = 1): lambda 0.5; the moving one is counted
+    fit = table[(table["sim"] == "fit") & (table["friction"] == "all")].iloc[0]
+    assert fit["linear_prefactor"] == pytest.approx(0.5) and fit["n_small"] == 1 and fit["n_moving"] == 1
     assert pd.read_csv(tmp_path / "runout.csv").shape == table.shape
     assert (tmp_path / "runout.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_rest_time_is_where_the_rms_speed_stays_below_the_settling_speed():
+    time = np.arange(5) * 0.5
+    one = np.array([0.0, 1.0, 1.2, 1.2, 1.2])       # one grain: speeds 2, 0.4, 0, 0 m/s
+    position = np.stack([one, np.zeros(5)], axis=-1)[:, None, :]
+    rms, rest_time = collapse.rest(time, position, speed=0.5)
+    np.testing.assert_allclose(rms, [2.0, 0.4, 0.0, 0.0])
+    assert rest_time == pytest.approx(0.5)          # below 0.5 m/s from the interval starting at t = 0.5
+    assert collapse.rest(time, position, speed=0.3)[1] == pytest.approx(1.0)
+    back = position.copy()
+    back[-1, 0, 0] = 1.0                             # moves again in the last interval: not at rest
+    assert np.isnan(collapse.rest(time, back, speed=0.3)[1])
+    assert collapse.rest(time, np.zeros((5, 1, 2)), speed=0.3)[1] == 0.0   # never moved: at rest from the start
 
 
 def test_aspect_ratios_are_log_spaced():
@@ -184,7 +207,22 @@ def test_the_released_column_keeps_its_grains_on_a_floor_over_the_whole_domain(c
 
 def test_a_window_shorter_than_the_tallest_collapse_is_refused(ci):
     collapse.SCENE.check(ci)
-    # the tallest column (a = 4, L0 = 0.024 m) rests after 3 sqrt(4 x 0.024 / 9.81) = 0.297 s; 10 frames of
-    # 0.025 s record 0.225 s
-    with pytest.raises(ConfigError, match=r"'collapse.frames' = 10 .* record 0.225 s; .* = 0.297 s: record longer"):
+    # the tallest column (a = 4, L0 = 0.024 m) rests after rest_time 3 x sqrt(4 x 0.024 / 9.81) = 0.297 s; 10
+    # frames of 0.025 s record 0.225 s
+    with pytest.raises(ConfigError, match=r"'collapse.frames' = 10 .* record 0.225 s; .*'collapse.rest_time' = 3 "
+                                          r"sqrt\(H0/g\) = 0.297 s: record longer"):
         collapse.SCENE.check({**ci, "frames": 10})
+    # the default and the paper preset record at least their rest_time of 5.5 sqrt(H0/g) of the tallest column
+    for scale in ("default", "paper"):
+        cfg = config.load({"scale": scale})["collapse"]
+        tallest = math.sqrt(max(cfg["sweep"]["aspect"]) * cfg["column_width"] / cfg["gravity"])
+        assert cfg["rest_time"] == 5.5 and cfg["frame_interval"] * (cfg["frames"] - 1) >= 5.5 * tallest
+
+
+def test_the_rest_time_is_a_check_of_the_config_not_a_parameter_of_the_sims(ci):
+    rows = sweep.build("collapse", ci)
+    assert "rest_time" not in rows.columns and "dt_safety" in rows.columns
+    # the paper preset: columns 25 mean diameters wide, at least 5 aspect ratios above 3
+    paper = config.load({"scale": "paper"})["collapse"]
+    assert paper["column_width"] / sum(paper["radius"]) == pytest.approx(25.0)
+    assert sum(a > 3.0 for a in collapse.aspects(paper)) >= 5
