@@ -60,6 +60,7 @@ PROMISES = {
     "results/meteorite/metrics.csv --config 'meteorite={ranks: 2}'":      # how LAMMPS runs: reruns nothing
         {"builds": ({"meteorite"}, "evaluate"), "reruns": set()},
     "results/collapse/physics.csv": {"builds": ({"collapse"}, "physics")},
+    "-d runs/paper results/collapse/physics.csv --config scale=paper": {"builds": ({"collapse"}, "physics")},
     "results/slide/dataset/stats.json": {"builds": ({"slide"}, "dataset"), "never": {"train", "evaluate"}},
     "results/slide/metrics.csv --forcerun train": {**SLIDE, "reruns": {"train", "rollout", "evaluate"}},
     "results/slide/metrics.csv --config 'slide={train: {noise_std: 0.01}}'":
