@@ -258,9 +258,9 @@ def _card_cell(row: dict) -> str:
 
 
 def runout(table: pd.DataFrame) -> str:
-    """results/<scene>/physics.csv of a runout-law check: a row per fit (all sims, then per friction): the sims at
-    rest that it fits, the linear prefactor, the power law, the final height's exponent and the longest rest time
-    of its sims (in sqrt(H0 / g) of each settled column)."""
+    """results/<scene>/physics.csv of a runout-law check: a row per fit (all sims, then per friction): the column
+    width (mean grain diameters), the sims at rest that it fits, the linear prefactor, the power law, the final
+    height's exponent and the longest rest time of its sims (in sqrt(H0 / g) of each settled column)."""
     sims, fits = table[table["sim"] != "fit"], table[table["sim"] == "fit"]
     rows = []
     for fit in fits.to_dict("records"):
@@ -272,11 +272,12 @@ def runout(table: pd.DataFrame) -> str:
         lam = f"{float(fit['linear_prefactor']):{NUMBER}} a" if finite(fit["linear_prefactor"]) else UNDEFINED
         beta = f"{float(fit['height_exponent']):.2f}" if finite(fit["height_exponent"]) else UNDEFINED
         longest = mine.loc[at_rest, "rest_time_scaled"].astype(float)
-        rows.append([group, f"{int(at_rest.sum())} of {len(mine)}", f"{lam} ({int(fit['n_small'])} sims)",
-                     f"{power} ({int(fit['n_large'])} sims)", beta,
+        widths = sorted({f"{float(w):.3g}" for w in mine["column_diameters"]})
+        rows.append([group, ", ".join(widths), f"{int(at_rest.sum())} of {len(mine)}",
+                     f"{lam} ({int(fit['n_small'])} sims)", f"{power} ({int(fit['n_large'])} sims)", beta,
                      f"{longest.max():.1f}" if len(longest) else UNDEFINED])
-    return markdown(["friction", "sims at rest (fitted)", "small a: lambda a (a < 1.8)",
-                     "large a: c a^alpha (a > 2.8)", "H_inf/L0 exponent (a > 1.15)",
+    return markdown(["friction", "column width (mean diameters)", "sims at rest (fitted)",
+                     "small a: lambda a (a < 1.8)", "large a: c a^alpha (a > 2.8)", "H_inf/L0 exponent (a > 1.15)",
                      "longest rest time (sqrt(H0/g))"], rows)
 
 
@@ -292,7 +293,8 @@ KINDS = {kind.name: kind for kind in (
          ("evaluation/performance_map.py", "evaluation/commands/performance.py", *PERFORMANCE), pays),
     Kind("card", "{subject}/card.csv", ("source", "method", "history", "quantity", "unit", "mean", "std"), CARD,
          card),
-    Kind("runout", "{subject}/physics.csv", ("sim", "friction", "linear_prefactor", "power_prefactor",
-                                             "power_exponent", "height_exponent", "at_rest", "rest_time_scaled"),
+    Kind("runout", "{subject}/physics.csv", ("sim", "friction", "column_diameters", "linear_prefactor",
+                                             "power_prefactor", "power_exponent", "height_exponent", "at_rest",
+                                             "rest_time_scaled"),
          ("generators/scenes/{subject}.py", "generators/contact.py", "generators/engine.py"), runout),
 )}

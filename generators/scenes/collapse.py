@@ -260,9 +260,9 @@ def rest(time: np.ndarray, position: np.ndarray, speed: float) -> tuple[np.ndarr
 
 
 def deposit(traj, rest_speed: float) -> dict:
-    """One sim's row of the runout table: settled aspect ratio (frame 0), final runout and height over L0, the
-    largest grain speed and the RMS speed over the last frame interval, at rest or not, and the rest time (s
-    and in units of sqrt(H0 / g) of the settled column)."""
+    """One sim's row of the runout table: the column's width in mean grain diameters, settled aspect ratio (frame
+    0), final runout and height over L0, the largest grain speed and the RMS speed over the last frame interval,
+    at rest or not, and the rest time (s and in units of sqrt(H0 / g) of the settled column)."""
     m = CollapseMetrics.for_trajectory(traj)
     grains = np.asarray(traj.position, np.float64)[:, ~m.kinematic]
     values = m(np.asarray(traj.position, np.float64)[[0, -1]])
@@ -271,7 +271,8 @@ def deposit(traj, rest_speed: float) -> dict:
     last = np.linalg.norm(grains[-1] - grains[-2], axis=-1).max() / float(traj.time[-1] - traj.time[-2])
     (gravity,) = trajectory_parameters(traj, ("gravity",), "collapse")
     return {"sim": str(traj.parameters.get("id")), "friction": float(traj.parameters["friction"]),
-            "aspect": height0 / width, "runout": values["Runout"][1] / width, "height": values["Height"][1] / width,
+            "column_diameters": width / m.bin_width, "aspect": height0 / width,
+            "runout": values["Runout"][1] / width, "height": values["Height"][1] / width,
             "final_max_speed": float(last), "final_rms_speed": float(rms[-1]), "at_rest": bool(np.isfinite(rest_s)),
             "rest_time": rest_s, "rest_time_scaled": rest_s / math.sqrt(height0 / gravity)}
 

@@ -44,17 +44,18 @@ def test_the_speed_table_scales_to_milliseconds_and_names_blow_ups():
 
 
 def test_the_runout_table_gives_each_fit_over_the_sims_at_rest_and_their_longest_rest():
-    sims = [{"sim": f"s{k}", "friction": mu, "at_rest": rest, "rest_time_scaled": t}
+    sims = [{"sim": f"s{k}", "friction": mu, "at_rest": rest, "rest_time_scaled": t, "column_diameters": 25.0}
             for k, (mu, rest, t) in enumerate([(0.3, True, 5.04), (0.3, False, math.nan), (0.6, True, 7.25)])]
     fit = {"sim": "fit", "linear_prefactor": 1.064, "power_prefactor": 1.2756, "power_exponent": 1.0324,
-           "height_exponent": 0.2356, "n_small": 2, "n_large": 1, "at_rest": math.nan, "rest_time_scaled": math.nan}
+           "height_exponent": 0.2356, "n_small": 2, "n_large": 1, "at_rest": math.nan, "rest_time_scaled": math.nan,
+           "column_diameters": math.nan}
     table = pd.DataFrame(sims + [{**fit, "friction": "all"}, {**fit, "friction": "0.3", "power_prefactor": math.nan},
                                  {**fit, "friction": "0.6"}])
     rows = kinds.runout(table).splitlines()
-    assert rows[0].startswith("| friction | sims at rest (fitted) | small a: lambda a (a < 1.8) |")
-    assert rows[2:] == ["| all | 2 of 3 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |",
-                        f"| 0.3 | 1 of 2 | 1.06 a (2 sims) | {kinds.UNDEFINED} (1 sims) | 0.24 | 5.0 |",
-                        "| 0.6 | 1 of 1 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |"]
+    assert rows[0].startswith("| friction | column width (mean diameters) | sims at rest (fitted) | small a: ")
+    assert rows[2:] == ["| all | 25 | 2 of 3 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |",
+                        f"| 0.3 | 25 | 1 of 2 | 1.06 a (2 sims) | {kinds.UNDEFINED} (1 sims) | 0.24 | 5.0 |",
+                        "| 0.6 | 25 | 1 of 1 | 1.06 a (2 sims) | 1.28 a^1.03 (1 sims) | 0.24 | 7.2 |"]
 
 
 def test_a_sources_pattern_may_name_the_tables_subject(tmp_path):

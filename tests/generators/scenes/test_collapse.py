@@ -115,6 +115,7 @@ def test_physics_measures_the_aspect_on_the_settled_column_the_final_runout_and_
     sims = table[table["sim"] != "fit"].set_index("sim")
     # aspect = frame 0 height / L0 = 2 / 2; runout and height of the last frame / L0; speed = 0.2 m / 0.1 s
     np.testing.assert_allclose(sims["aspect"], [1.0, 1.0])
+    np.testing.assert_allclose(sims["column_diameters"], [2.0, 2.0])        # L0 = 2 of grains 1.0 across
     np.testing.assert_allclose(sims["runout"], [1.0 / L0, 1.0 / L0])   # the shift keeps the bins
     np.testing.assert_allclose(sims["height"], [0.5, 0.5])
     np.testing.assert_allclose(sims["final_max_speed"], [0.0, 2.0])
