@@ -272,7 +272,7 @@ def runout(table: pd.DataFrame) -> str:
         lam = f"{float(fit['linear_prefactor']):{NUMBER}} a" if finite(fit["linear_prefactor"]) else UNDEFINED
         beta = f"{float(fit['height_exponent']):.2f}" if finite(fit["height_exponent"]) else UNDEFINED
         longest = mine.loc[at_rest, "rest_time_scaled"].astype(float)
-        widths = sorted({f"{float(w):.3g}" for w in mine["column_diameters"]})
+        widths = sorted({f"{float(w):.2g}" for w in mine["column_diameters"]})
         rows.append([group, ", ".join(widths), f"{int(at_rest.sum())} of {len(mine)}",
                      f"{lam} ({int(fit['n_small'])} sims)", f"{power} ({int(fit['n_large'])} sims)", beta,
                      f"{longest.max():.1f}" if len(longest) else UNDEFINED])
